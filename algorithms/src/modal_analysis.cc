@@ -34,15 +34,7 @@ Mode closed_form_mode(double f_hz, double zeta, const std::string& direction, co
 void add_rotor_modes(const PlantModel& plant, double speed_rpm, const ModalOptions& opt, std::vector<Mode>& out) {
   const RotorSystem sys = assemble_rotor(plant, speed_rpm);
   const int n = sys.size();
-  const Eigen::MatrixXd m = Eigen::MatrixXd(sys.m);
-  Eigen::LDLT<Eigen::MatrixXd> mf(m);
-  if (mf.info() != Eigen::Success || !mf.isPositive() || mf.vectorD().minCoeff() <= 0.0) {
-    throw InputError("mass matrix is not positive definite (negative or missing mass?)");
-  }
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(2 * n, 2 * n);
-  a.topRightCorner(n, n).setIdentity();
-  a.bottomLeftCorner(n, n) = -mf.solve(Eigen::MatrixXd(sys.k));
-  a.bottomRightCorner(n, n) = -mf.solve(sys.dense_damping());
+  const Eigen::MatrixXd a = first_order_matrix(sys);
   Eigen::EigenSolver<Eigen::MatrixXd> es(a, opt.shapes);
   if (es.info() != Eigen::Success) throw InputError("rotor eigenproblem did not converge");
 

@@ -106,6 +106,19 @@ Eigen::MatrixXd RotorSystem::dense_damping() const {
   return d;
 }
 
+Eigen::MatrixXd first_order_matrix(const RotorSystem& sys) {
+  const int n = sys.size();
+  Eigen::LDLT<Eigen::MatrixXd> mf{Eigen::MatrixXd(sys.m)};
+  if (mf.info() != Eigen::Success || mf.vectorD().minCoeff() <= 0.0) {
+    throw InputError("mass matrix is not positive definite (negative or missing mass?)");
+  }
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  a.topRightCorner(n, n).setIdentity();
+  a.bottomLeftCorner(n, n) = -mf.solve(Eigen::MatrixXd(sys.k));
+  a.bottomRightCorner(n, n) = -mf.solve(sys.dense_damping());
+  return a;
+}
+
 PlaneModes free_free_plane_modes(const PlantModel& plant, int count) {
   Eigen::SparseMatrix<double> k, m;
   plane_matrices(plant, k, m);

@@ -48,6 +48,10 @@ struct PlaneModes {
 // `count` < 0: all modes.
 PlaneModes free_free_plane_modes(const PlantModel& plant, int count = -1);
 
+// The first-order (state-space) matrix [0 I; -M^-1 K  -M^-1 (C + C_s)] of a
+// system, dense. Throws InputError if M is not positive definite.
+Eigen::MatrixXd first_order_matrix(const RotorSystem& sys);
+
 // Assembles the lateral system at `speed_rpm` (links from their speed
 // tables). Throws InputError if the model is singular or unphysical.
 RotorSystem assemble_rotor(const PlantModel& plant, double speed_rpm);

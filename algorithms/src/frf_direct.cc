@@ -1,0 +1,81 @@
+// Direct FRF: sparse complex LU of the dynamic stiffness per line (UMFPACK).
+#include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <Eigen/UmfPackSupport>
+#include <complex>
+#include <string>
+
+#include "ambdiag/core/error.h"
+#include "frf_lateral.h"
+
+namespace ambdiag::detail {
+
+namespace {
+
+using cd = std::complex<double>;
+using SparseC = Eigen::SparseMatrix<cd>;
+
+// Values of `a` laid out on the (larger) compressed pattern `p`.
+Eigen::VectorXcd values_on_pattern(const Eigen::SparseMatrix<double>& a, const SparseC& p) {
+  const SparseC on = a.cast<cd>() + cd(0.0) * p;
+  if (on.nonZeros() != p.nonZeros()) throw std::logic_error("FRF pattern mismatch");
+  return Eigen::Map<const Eigen::VectorXcd>(on.valuePtr(), on.nonZeros());
+}
+
+}  // namespace
+
+Eigen::MatrixXcd lateral_frf_direct(const RotorSystem& sys, const LateralMaps& maps, const std::vector<double>& w) {
+  const Eigen::Index n_out = maps.c_out.rows(), n_in = maps.b_in.cols();
+  Eigen::MatrixXcd h(static_cast<Eigen::Index>(w.size()), n_out * n_in);
+  if (n_out == 0 || n_in == 0) return h;
+
+  // One pattern for K, C and M so the symbolic analysis is done once.
+  SparseC z = sys.k.cast<cd>() + sys.c.cast<cd>() + sys.m.cast<cd>();
+  z.makeCompressed();
+  const Eigen::VectorXcd kv = values_on_pattern(sys.k, z), cv = values_on_pattern(sys.c, z),
+                         mv = values_on_pattern(sys.m, z);
+
+  // Structural damping C_s = U diag(d) U^T: only columns with d > 0.
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index i = 0; i < sys.damping_d.size(); ++i)
+    if (sys.damping_d(i) > 0.0) keep.push_back(i);
+  const Eigen::Index r = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd u(sys.size(), r);
+  Eigen::VectorXd d(r);
+  for (Eigen::Index i = 0; i < r; ++i) {
+    u.col(i) = sys.damping_u.col(keep[static_cast<size_t>(i)]);
+    d(i) = sys.damping_d(keep[static_cast<size_t>(i)]);
+  }
+  Eigen::MatrixXcd rhs(sys.size(), n_in + r);
+  rhs.leftCols(n_in) = maps.b_in.cast<cd>();
+  rhs.rightCols(r) = u.cast<cd>();
+  const Eigen::MatrixXcd ut = u.transpose().cast<cd>();
+  const Eigen::MatrixXcd c_out = maps.c_out.cast<cd>();
+
+  Eigen::UmfPackLU<SparseC> lu;
+  lu.analyzePattern(z);
+  Eigen::Map<Eigen::VectorXcd> zv(z.valuePtr(), z.nonZeros());
+  for (size_t line = 0; line < w.size(); ++line) {
+    const double wl = w[line];
+    zv = kv + cd(0.0, wl) * cv - wl * wl * mv;
+    lu.factorize(z);
+    if (lu.info() != Eigen::Success) {
+      throw InputError("dynamic stiffness is singular at " + std::to_string(wl / (2 * M_PI)) +
+                       " Hz (an undamped resonance on a line, or a rotor without support and mass)");
+    }
+    const Eigen::MatrixXcd x = lu.solve(rhs);
+    Eigen::MatrixXcd hl = c_out * x.leftCols(n_in);
+    if (r > 0) {
+      // Woodbury: (Z0 + U (jw D) U^T)^-1 = Z0^-1 - Z0^-1 U S^-1 U^T Z0^-1,
+      // S = (jw D)^-1 + U^T Z0^-1 U.
+      Eigen::MatrixXcd s = ut * x.rightCols(r);
+      s.diagonal() += (cd(0.0, wl) * d.cast<cd>()).cwiseInverse();
+      hl -= (c_out * x.rightCols(r)) * s.partialPivLu().solve(ut * x.leftCols(n_in));
+    }
+    for (Eigen::Index o = 0; o < n_out; ++o)
+      for (Eigen::Index i = 0; i < n_in; ++i) h(static_cast<Eigen::Index>(line), o * n_in + i) = hl(o, i);
+  }
+  return h;
+}
+
+}  // namespace ambdiag::detail
