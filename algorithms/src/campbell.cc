@@ -17,8 +17,13 @@ constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 // break where it leaves the band of interest; tracks that never come below
 // f_max are dropped at the end.
 constexpr double kBandMargin = 1.5;
-// Eigenvalues this close (relative) are one repeated eigenvalue.
-constexpr double kRepeatedTol = 1e-6;
+// Eigenvalues this close (relative) are one repeated eigenvalue. The
+// first-order eigensolver resolves a repeated pair to ~1e-6 only, and within
+// such a gap the individual eigenvectors are ill-determined anyway.
+constexpr double kRepeatedTol = 1e-4;
+// Log decrements within this of zero are round-off of an undamped mode, not
+// an instability.
+constexpr double kNeutralLogDec = 1e-5;
 // Weight of the frequency tie-breaker against MAC (0..1).
 constexpr double kFreqWeight = 0.01;
 
@@ -131,11 +136,11 @@ void stability(CampbellTrack& t, const std::vector<double>& speeds) {
       t.min_log_dec = ld;
       t.min_log_dec_speed_rpm = speeds[i];
     }
-    if (ld < 0 && !t.instability_onset_rpm) {
+    if (ld < -kNeutralLogDec && !t.instability_onset_rpm) {
       const bool prev = i > 0 && !std::isnan(t.log_dec[i - 1]);
       // Zero of the log decrement between the last stable and first unstable step.
-      t.instability_onset_rpm =
-          prev ? speeds[i - 1] + t.log_dec[i - 1] / (t.log_dec[i - 1] - ld) * (speeds[i] - speeds[i - 1]) : speeds[i];
+      const double u = prev ? std::clamp(t.log_dec[i - 1] / (t.log_dec[i - 1] - ld), 0.0, 1.0) : 1.0;
+      t.instability_onset_rpm = prev ? speeds[i - 1] + u * (speeds[i] - speeds[i - 1]) : speeds[i];
     }
     any = true;
   }
@@ -267,7 +272,7 @@ CampbellResult campbell(const PlantModel& plant, const CampbellOptions& opt) {
     for (size_t i = 0; i < n; ++i)
       if (d.repeated[i]) t.whirl_at[i] = t.whirl;
     stability(t, r.speeds_rpm);
-    if (t.min_log_dec < 0) r.stable = false;
+    if (t.min_log_dec < -kNeutralLogDec) r.stable = false;
     if (t.instability_onset_rpm && (!r.instability_onset_rpm || *t.instability_onset_rpm < *r.instability_onset_rpm)) {
       r.instability_onset_rpm = t.instability_onset_rpm;
     }

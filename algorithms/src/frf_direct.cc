@@ -1,19 +1,19 @@
-// Direct FRF: sparse complex LU of the dynamic stiffness per line (UMFPACK).
+// Direct FRF: sparse complex LU of the dynamic stiffness per line (KLU).
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
-#include <Eigen/UmfPackSupport>
 #include <complex>
 #include <string>
 
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
+#include "klu_complex.h"
 
 namespace ambdiag::detail {
 
 namespace {
 
 using cd = std::complex<double>;
-using SparseC = Eigen::SparseMatrix<cd>;
+using SparseC = KluComplex::Matrix;
 
 // Values of `a` laid out on the (larger) compressed pattern `p`.
 Eigen::VectorXcd values_on_pattern(const Eigen::SparseMatrix<double>& a, const SparseC& p) {
@@ -52,18 +52,18 @@ Eigen::MatrixXcd lateral_frf_direct(const RotorSystem& sys, const LateralMaps& m
   const Eigen::MatrixXcd ut = u.transpose().cast<cd>();
   const Eigen::MatrixXcd c_out = maps.c_out.cast<cd>();
 
-  Eigen::UmfPackLU<SparseC> lu;
-  lu.analyzePattern(z);
+  KluComplex lu(z);
+  Eigen::MatrixXcd x;
   Eigen::Map<Eigen::VectorXcd> zv(z.valuePtr(), z.nonZeros());
   for (size_t line = 0; line < w.size(); ++line) {
     const double wl = w[line];
     zv = kv + cd(0.0, wl) * cv - wl * wl * mv;
-    lu.factorize(z);
-    if (lu.info() != Eigen::Success) {
+    if (!lu.factorize(z)) {
       throw InputError("dynamic stiffness is singular at " + std::to_string(wl / (2 * M_PI)) +
                        " Hz (an undamped resonance on a line, or a rotor without support and mass)");
     }
-    const Eigen::MatrixXcd x = lu.solve(rhs);
+    x = rhs;
+    lu.solve_in_place(x);
     Eigen::MatrixXcd hl = c_out * x.leftCols(n_in);
     if (r > 0) {
       // Woodbury: (Z0 + U (jw D) U^T)^-1 = Z0^-1 - Z0^-1 U S^-1 U^T Z0^-1,

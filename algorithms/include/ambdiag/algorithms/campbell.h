@@ -52,7 +52,8 @@ struct CampbellTrack {
   std::vector<double> mac;      // MAC with the previous speed's shape (NaN at the first)
   double min_log_dec = 0.0;     // over the speeds where the track exists
   double min_log_dec_speed_rpm = 0.0;
-  // First speed where the log decrement becomes negative, interpolated
+  // First speed where the log decrement becomes negative (below -1e-5, so
+  // that round-off of an undamped mode does not count), interpolated
   // linearly between speed steps; empty if the track stays stable.
   std::optional<double> instability_onset_rpm;
 };
@@ -80,7 +81,7 @@ struct CampbellResult {
   std::vector<CriticalSpeed> critical_speeds;  // ascending speed
   std::vector<FixedMode> fixed_modes;
   double f_max_hz = 0.0;
-  bool stable = true;  // every tracked mode has log_dec >= 0 at every speed
+  bool stable = true;  // every tracked mode has log_dec >= -1e-5 at every speed
   std::optional<double> instability_onset_rpm;  // lowest over the tracks
   double worst_mac = 1.0;  // weakest accepted pairing: tracking quality
 };
