@@ -22,7 +22,8 @@ struct Channel {
   ChannelRole role = ChannelRole::other;
   std::string role_text;  // as written (kept for roles the spec does not name)
   std::string unit;
-  std::string input;      // for role reference: the actuator it drives
+  std::string input;                                // for role reference: the actuator it drives
+  nlohmann::json extra = nlohmann::json::object();  // unknown keys, kept for round trips
 };
 
 enum class ExcitationType { multisine, stepsine, chirp, random, none };
@@ -43,6 +44,7 @@ struct ExcitationSegment {
   double amplitude = 0.0;
   int64_t settle_samples = 0;
   int64_t meas_samples = 0;
+  nlohmann::json extra = nlohmann::json::object();  // unknown keys, kept for round trips
 };
 
 struct Excitation {
@@ -73,13 +75,16 @@ struct RunRecording {
     return samples[static_cast<size_t>(frame) * channels.size() + static_cast<size_t>(channel)];
   }
   // Throws InputError if sizes disagree (samples not whole frames, a
-  // segment past the end, duplicate channel names, a reference without input).
+  // segment past the end, duplicate channel names, a reference without input),
+  // a sample is NaN or infinite, or a value breaks a rule of the format
+  // (docs/formats.md, "Run recording"); the message names the field.
   void validate() const;
   // Throws InputError if a channel names no sensor or actuator of the plant.
   void validate_against(const PlantModel& plant) const;
 };
 
-RunRecording run_from_json(const nlohmann::json& doc);  // metadata only, no samples
+// Metadata only, no samples; checks every rule that does not need them.
+RunRecording run_from_json(const nlohmann::json& doc);
 nlohmann::json run_to_json(const RunRecording& run);
 // Reads run.json and samples.f32 from a folder; throws InputError naming the
 // file and what is wrong; never returns a half-read run.
