@@ -1,6 +1,7 @@
 #include "json_fields.h"
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "ambdiag/core/error.h"
@@ -55,6 +56,7 @@ double JsonField::number() const {
 }
 
 int64_t JsonField::integer() const {
+  if (value_->is_number_unsigned() && value_->get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) fail("out of range");
   if (value_->is_number_integer()) return value_->get<int64_t>();
   if (value_->is_number_float()) {
     const double v = value_->get<double>();

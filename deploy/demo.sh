@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Sets everything up on a fresh Debian 12 machine and runs the main job on the
+# embedded default: the offline analysis of the reference pump
+# (../shared/data/reference_pump): its modes, its simulated FRF matrix
+# compared with a measurement, and a UFF58 export.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data=${AMBDIAG_DATA:-../shared/data}
+out=${AMBDIAG_DEMO_OUT:-build/demo}
+
+deploy/install-deps.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build build -j "${AMBDIAG_JOBS:-2}" --target ambdiag
+mkdir -p "$out"
+bin=build/cli/ambdiag
+plant="$data/reference_pump/plant.json"
+
+echo "== modes of the reference pump at its speed (ambdiag model modes)"
+"$bin" model modes "$plant" --fmax 1000
+"$bin" model modes "$plant" --fmax 1000 --json > "$out/modes.json"
+echo
+echo "== simulated 5 x 5 FRF matrix, 1..1000 Hz (ambdiag model frf)"
+"$bin" model frf "$plant" -o "$out/model_frf.csv" --fmin 1 --fmax 1000 --df 1
+echo
+echo "== export to Universal File Format 58 (ambdiag convert)"
+"$bin" convert "$out/model_frf.csv" "$out/model_frf.uff"
+echo
+echo "outputs in $out/"

@@ -1,0 +1,133 @@
+// The CLI contract of ../shared/specs/cli.md, checked on the real binary:
+// exit codes, JSON on stdout, messages on stderr.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/uff58.h"
+#include "test_support.h"
+
+namespace ambdiag {
+namespace {
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+// Runs the ambdiag binary with shell-quoted arguments.
+Result run(const std::string& args) {
+  // Not scratch_dir(): that would empty the test's own folder.
+  const std::string err_path = testing::write_scratch("stderr.txt", "").string();
+  const std::string cmd = std::string(AMBDIAG_CLI) + " " + args + " 2>" + err_path;
+  Result r;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream e(err_path);
+  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
+  return r;
+}
+
+std::string data(const std::string& rel) { return testing::data_file(rel).string(); }
+
+TEST(Cli, ModelModesPrintsSortedJsonModesWithContractKeys) {
+  const Result r = run("model modes " + data("reference_pump/plant.json") + " --json --fmax 1000");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j.contains("modes"));
+  double last = -1;
+  int forward = 0;
+  for (const auto& m : j["modes"]) {
+    ASSERT_TRUE(m.contains("f_hz") && m.contains("zeta") && m.contains("direction"));
+    EXPECT_GE(m["f_hz"].get<double>(), last);
+    last = m["f_hz"].get<double>();
+    forward += m["whirl"] == "forward";
+  }
+  EXPECT_EQ(forward, 5);  // two rigid-body and three bending modes below 1 kHz
+}
+
+TEST(Cli, ModelModesHonoursSpeedOption) {
+  const Result r = run("model modes " + data("reference_pump/plant.json") + " --speed 0 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["speed_rpm"].get<double>(), 0.0);
+}
+
+TEST(Cli, UsageErrorsExitTwo) {
+  EXPECT_EQ(run("").code, 2);
+  EXPECT_EQ(run("frobnicate").code, 2);
+  EXPECT_EQ(run("model modes").code, 2);
+  EXPECT_EQ(run("model modes " + data("reference_pump/plant.json") + " --speed fast").code, 2);
+  EXPECT_EQ(run("model modes " + data("reference_pump/plant.json") + " --bogus").code, 2);
+  EXPECT_EQ(run("model frf " + data("reference_pump/plant.json")).code, 2);  // no -o
+}
+
+TEST(Cli, HelpExistsForEveryCommand) {
+  for (const char* c : {"--help", "model --help", "model modes --help", "model frf --help", "convert --help"}) {
+    const Result r = run(c);
+    EXPECT_EQ(r.code, 0) << c;
+    EXPECT_NE(r.out.find("usage"), std::string::npos) << c;
+  }
+}
+
+TEST(Cli, BadInputExitsThreeNamingFileAndField) {
+  const auto bad = testing::write_scratch("bad_plant.json",
+                                          R"({"format":"ambdiag.plant/1","materials":{"s":{"E":2e11,"G":8e10,"rho":7800}},)"
+                                          R"("shaft":[{"L":0.1,"od":0.05,"id":0.06,"material":"s"}]})");
+  const Result r = run("model modes " + bad.string() + " --json");
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("bad_plant.json"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("shaft[0].od: must be > id"), std::string::npos) << r.err;
+  EXPECT_EQ(run("model modes /nonexistent.json").code, 3);
+}
+
+TEST(Cli, ModelFrfWritesAReadableFrfFileAtTheRequestedGrid) {
+  const auto out = testing::scratch_dir() / "model.csv";
+  const Result r = run("model frf " + data("reference_pump/plant.json") + " -o " + out.string() +
+                       " --fmin 10 --fmax 100 --df 5");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const FrfData f = read_frf_csv(out.string());
+  EXPECT_EQ(f.freq_hz.size(), 19u);
+  EXPECT_EQ(f.entries.size(), 25u);
+}
+
+TEST(Cli, ConvertRoundTripsAnFrfThroughUff58) {
+  const auto dir = testing::scratch_dir();
+  const std::string src = data("ident_7mode/frf.csv");
+  for (const std::string flag : {"", " --binary"}) {
+    ASSERT_EQ(run("convert " + src + " " + (dir / "x.uff").string() + flag).code, 0);
+    ASSERT_EQ(run("convert " + (dir / "x.uff").string() + " " + (dir / "back.csv").string()).code, 0);
+    const FrfData a = read_frf_csv(src), b = read_frf_csv((dir / "back.csv").string());
+    ASSERT_EQ(a.entries.size(), b.entries.size());
+    EXPECT_EQ(a.freq_hz, b.freq_hz);
+    EXPECT_EQ(a.entries[0].h, b.entries[0].h) << "UFF58 round trip must be lossless" << flag;
+  }
+}
+
+TEST(Cli, ConvertReadsForeignTimeDataToCsvAndRefusesTruncatedFiles) {
+  const auto dir = testing::scratch_dir();
+  const Result ok = run("convert " + data("external/uff/binary8byte.uff") + " " + (dir / "t.csv").string());
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  std::ifstream in(dir / "t.csv");
+  int lines = 0;
+  for (std::string l; std::getline(in, l);) ++lines;
+  EXPECT_EQ(lines, 2 + 250);  // comment, header, 250 samples
+  std::ifstream src(data("external/uff/Sample_UFF58b_bin.uff"), std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+  const auto cut = testing::write_scratch("cut.uff", bytes.substr(0, bytes.size() / 3));
+  const Result bad = run("convert " + cut.string() + " " + (dir / "c.csv").string());
+  EXPECT_EQ(bad.code, 3);
+  EXPECT_NE(bad.err.find("cut.uff"), std::string::npos) << bad.err;
+}
+
+}  // namespace
+}  // namespace ambdiag
