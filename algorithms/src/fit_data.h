@@ -1,0 +1,61 @@
+// Shared pieces of the rational fit (private): the weighted data, the real
+// pole basis, the linear start and the maximum-likelihood refinement.
+#pragma once
+
+#include <complex>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace ambdiag::detail {
+
+using cd = std::complex<double>;
+
+// Lines x entries; h already divided by (j w)^numerator_power.
+struct FitData {
+  Eigen::VectorXd w;       // rad/s
+  Eigen::MatrixXcd h;      // lines x entries
+  Eigen::MatrixXd weight;  // 1 / sigma, lines x entries
+  int lines() const { return static_cast<int>(w.size()); }
+  int entries() const { return static_cast<int>(h.cols()); }
+};
+
+// Number of real basis columns of a pole set: 2 per pair, 1 per real pole.
+int basis_columns(const std::vector<cd>& poles);
+
+// Complex basis at s = j w: for a pair p, columns 1/(s-p) + 1/(s-conj p) and
+// j/(s-p) - j/(s-conj p) (real coefficients c1, c2 give the residue
+// c1 + j c2); for a real pole, 1/(s-p); optionally a last column of ones.
+Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w, bool direct);
+
+// Residue of pole k from the real coefficients of its basis columns.
+std::vector<cd> residues_from_coefficients(const std::vector<cd>& poles, const Eigen::VectorXd& c);
+
+// Starting poles: `pairs` lightly damped pairs spread over [w_min, w_max].
+std::vector<cd> starting_poles(int pairs, double w_min, double w_max);
+
+// Relaxed vector fitting with common poles; returns the relocated poles
+// (unstable ones flipped into the left half-plane).
+std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int iterations);
+
+struct LinearSolution {
+  Eigen::MatrixXcd residues;  // entries x poles
+  Eigen::VectorXd direct;     // entries
+  double cost = 0.0;          // sum of squared weighted residuals
+};
+// Residues and direct terms for fixed poles (weighted least squares per entry).
+LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles);
+
+struct MlSolution {
+  std::vector<cd> poles;
+  LinearSolution linear;
+  Eigen::MatrixXd pole_covariance;  // of [Re p, Im p] per pair / [p] per real pole, unscaled (J^T J)^-1
+  int iterations = 0;
+  bool converged = false;
+  std::string stop_reason;
+};
+// Levenberg-Marquardt on the poles with the residues projected out.
+MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations);
+
+}  // namespace ambdiag::detail

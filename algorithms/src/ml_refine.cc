@@ -1,0 +1,166 @@
+// Maximum-likelihood refinement of the common poles: Levenberg-Marquardt on
+// the weighted least-squares cost with the residues and direct terms
+// projected out (variable projection; Golub & Pereyra 1973, Jacobian after
+// Kaufman 1975).
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+
+#include "fit_data.h"
+
+namespace ambdiag::detail {
+
+namespace {
+
+int parameter_count(const std::vector<cd>& poles) { return basis_columns(poles); }
+
+std::vector<cd> apply_step(const std::vector<cd>& poles, const Eigen::VectorXd& step) {
+  std::vector<cd> out;
+  int k = 0;
+  for (const cd& p : poles) {
+    if (p.imag() == 0.0) {
+      out.emplace_back(p.real() + step(k++), 0.0);
+    } else {
+      out.emplace_back(p.real() + step(k), std::abs(p.imag() + step(k + 1)));
+      k += 2;
+    }
+  }
+  return out;
+}
+
+bool stable(const std::vector<cd>& poles) {
+  for (const cd& p : poles)
+    if (!(p.real() < 0.0) || !std::isfinite(p.real()) || !std::isfinite(p.imag())) return false;
+  return true;
+}
+
+// Gauss-Newton system of the projected problem at `poles`.
+struct Normal {
+  Eigen::MatrixXd jtj;
+  Eigen::VectorXd jtr;
+  LinearSolution linear;
+};
+
+Normal normal_equations(const FitData& data, const std::vector<cd>& poles) {
+  const int L = data.lines(), E = data.entries();
+  const int np = parameter_count(poles);
+  const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
+  const int nc = static_cast<int>(phi.cols());
+  Normal out;
+  out.jtj = Eigen::MatrixXd::Zero(np, np);
+  out.jtr = Eigen::VectorXd::Zero(np);
+  out.linear.residues.resize(E, static_cast<Eigen::Index>(poles.size()));
+  out.linear.direct.resize(E);
+
+  // 1/(s - p)^2 and 1/(s - conj p)^2 per line and pole.
+  Eigen::MatrixXcd g(L, static_cast<Eigen::Index>(poles.size())), gc(L, static_cast<Eigen::Index>(poles.size()));
+  for (int l = 0; l < L; ++l) {
+    const cd s(0.0, data.w(l));
+    for (size_t k = 0; k < poles.size(); ++k) {
+      g(l, static_cast<Eigen::Index>(k)) = 1.0 / ((s - poles[k]) * (s - poles[k]));
+      gc(l, static_cast<Eigen::Index>(k)) = 1.0 / ((s - std::conj(poles[k])) * (s - std::conj(poles[k])));
+    }
+  }
+  Eigen::MatrixXd a(2 * L, nc), dmat(2 * L, np);
+  Eigen::VectorXd y(2 * L);
+  const cd j(0.0, 1.0);
+  for (int e = 0; e < E; ++e) {
+    for (int l = 0; l < L; ++l) {
+      const double wt = data.weight(l, e);
+      a.row(l) = wt * phi.row(l).real();
+      a.row(L + l) = wt * phi.row(l).imag();
+      y(l) = wt * data.h(l, e).real();
+      y(L + l) = wt * data.h(l, e).imag();
+    }
+    Eigen::HouseholderQR<Eigen::MatrixXd> qr(a);
+    const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(2 * L, nc);
+    const Eigen::VectorXd c = qr.solve(y);
+    const Eigen::VectorXd resid = a * c - y;
+    out.linear.cost += resid.squaredNorm();
+    const auto r = residues_from_coefficients(poles, c);
+    for (size_t k = 0; k < r.size(); ++k) out.linear.residues(e, static_cast<Eigen::Index>(k)) = r[k];
+    out.linear.direct(e) = c(nc - 1);
+
+    // Derivatives of the weighted model with respect to Re p and Im p.
+    for (int l = 0; l < L; ++l) {
+      const double wt = data.weight(l, e);
+      int col = 0;
+      for (size_t k = 0; k < poles.size(); ++k) {
+        const cd gk = g(l, static_cast<Eigen::Index>(k)), gck = gc(l, static_cast<Eigen::Index>(k));
+        if (poles[k].imag() == 0.0) {
+          const cd d = wt * r[k] * gk;
+          dmat(l, col) = d.real();
+          dmat(L + l, col) = d.imag();
+          ++col;
+        } else {
+          const cd da = wt * (r[k] * gk + std::conj(r[k]) * gck);
+          const cd db = wt * (j * r[k] * gk - j * std::conj(r[k]) * gck);
+          dmat(l, col) = da.real();
+          dmat(L + l, col) = da.imag();
+          dmat(l, col + 1) = db.real();
+          dmat(L + l, col + 1) = db.imag();
+          col += 2;
+        }
+      }
+    }
+    // Kaufman: J = P_perp D, with P_perp = I - Q Q^T.
+    const Eigen::MatrixXd qtd = q.transpose() * dmat;
+    out.jtj.noalias() += dmat.transpose() * dmat - qtd.transpose() * qtd;
+    out.jtr.noalias() += dmat.transpose() * resid;  // Q^T resid = 0 at the LS solution
+  }
+  return out;
+}
+
+}  // namespace
+
+MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations) {
+  MlSolution out;
+  double mu = 1e-3;
+  Normal ne = normal_equations(data, poles);
+  double cost = ne.linear.cost;
+  out.stop_reason = "iteration limit";
+  int it = 0;
+  for (; it < max_iterations; ++it) {
+    bool accepted = false;
+    for (int tries = 0; tries < 12 && !accepted; ++tries) {
+      Eigen::MatrixXd lhs = ne.jtj;
+      lhs.diagonal() += mu * ne.jtj.diagonal().cwiseMax(1e-300);
+      const Eigen::VectorXd step = -lhs.ldlt().solve(ne.jtr);
+      const std::vector<cd> trial = apply_step(poles, step);
+      if (stable(trial) && step.allFinite()) {
+        const LinearSolution lin = solve_residues(data, trial);
+        if (lin.cost < cost) {
+          const double drop = (cost - lin.cost) / std::max(cost, 1e-300);
+          poles = trial;
+          cost = lin.cost;
+          mu = std::max(mu / 3.0, 1e-12);
+          accepted = true;
+          ne = normal_equations(data, poles);
+          if (drop < 1e-10) {
+            out.converged = true;
+            out.stop_reason = "relative cost decrease below 1e-10";
+          }
+          continue;
+        }
+      }
+      mu *= 4.0;
+    }
+    if (!accepted) {
+      out.converged = true;  // no step lowers the cost: a (local) minimum
+      out.stop_reason = "no further decrease (local minimum)";
+      break;
+    }
+    if (out.converged) {
+      ++it;
+      break;
+    }
+  }
+  out.iterations = it;
+  out.poles = poles;
+  out.linear = ne.linear;
+  Eigen::MatrixXd cov = ne.jtj.ldlt().solve(Eigen::MatrixXd::Identity(ne.jtj.rows(), ne.jtj.cols()));
+  out.pole_covariance = cov;
+  return out;
+}
+
+}  // namespace ambdiag::detail

@@ -1,0 +1,87 @@
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "fit_data.h"
+
+namespace ambdiag::detail {
+
+int basis_columns(const std::vector<cd>& poles) {
+  int n = 0;
+  for (const cd& p : poles) n += p.imag() == 0.0 ? 1 : 2;
+  return n;
+}
+
+Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w, bool direct) {
+  const int cols = basis_columns(poles) + (direct ? 1 : 0);
+  Eigen::MatrixXcd phi(w.size(), cols);
+  const cd j(0.0, 1.0);
+  for (Eigen::Index l = 0; l < w.size(); ++l) {
+    const cd s(0.0, w(l));
+    int c = 0;
+    for (const cd& p : poles) {
+      if (p.imag() == 0.0) {
+        phi(l, c++) = 1.0 / (s - p);
+      } else {
+        const cd a = 1.0 / (s - p), b = 1.0 / (s - std::conj(p));
+        phi(l, c++) = a + b;
+        phi(l, c++) = j * a - j * b;
+      }
+    }
+    if (direct) phi(l, c) = 1.0;
+  }
+  return phi;
+}
+
+std::vector<cd> residues_from_coefficients(const std::vector<cd>& poles, const Eigen::VectorXd& c) {
+  std::vector<cd> r;
+  int k = 0;
+  for (const cd& p : poles) {
+    if (p.imag() == 0.0) {
+      r.emplace_back(c(k++), 0.0);
+    } else {
+      r.emplace_back(c(k), c(k + 1));
+      k += 2;
+    }
+  }
+  return r;
+}
+
+std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
+  std::vector<cd> p;
+  const double lo = std::max(w_min, 1e-3 * w_max);
+  for (int i = 0; i < pairs; ++i) {
+    // Linear spacing follows the usual resonance density of rotors better
+    // than logarithmic spacing over one or two decades.
+    const double beta = pairs == 1 ? 0.5 * (lo + w_max) : lo + (w_max - lo) * i / (pairs - 1);
+    p.emplace_back(-beta / 100.0, beta);
+  }
+  return p;
+}
+
+LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles) {
+  const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
+  const int L = data.lines(), n = static_cast<int>(phi.cols());
+  LinearSolution out;
+  out.residues.resize(data.entries(), static_cast<Eigen::Index>(poles.size()));
+  out.direct.resize(data.entries());
+  Eigen::MatrixXd a(2 * L, n);
+  Eigen::VectorXd b(2 * L);
+  for (int e = 0; e < data.entries(); ++e) {
+    for (int l = 0; l < L; ++l) {
+      const double wt = data.weight(l, e);
+      a.row(l) = wt * phi.row(l).real();
+      a.row(L + l) = wt * phi.row(l).imag();
+      b(l) = wt * data.h(l, e).real();
+      b(L + l) = wt * data.h(l, e).imag();
+    }
+    const Eigen::VectorXd c = a.colPivHouseholderQr().solve(b);
+    out.cost += (a * c - b).squaredNorm();
+    const auto r = residues_from_coefficients(poles, c);
+    for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];
+    out.direct(e) = c(n - 1);
+  }
+  return out;
+}
+
+}  // namespace ambdiag::detail

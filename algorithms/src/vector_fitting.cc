@@ -1,0 +1,103 @@
+// Relaxed vector fitting with common poles (Gustavsen & Semlyen 1999;
+// relaxation: Gustavsen 2006; per-entry QR elimination of the residues:
+// Deschrijver, Mrozowski, Dhaene & De Zutter 2008).
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "fit_data.h"
+
+namespace ambdiag::detail {
+
+namespace {
+
+// Zeros of sigma(s) = c^T (sI - A)^-1 b + d in the real realisation of the
+// pole set: eig(A - b c^T / d).
+std::vector<cd> sigma_zeros(const std::vector<cd>& poles, const Eigen::VectorXd& c, double d) {
+  const int n = basis_columns(poles);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+  int k = 0;
+  for (const cd& p : poles) {
+    if (p.imag() == 0.0) {
+      a(k, k) = p.real();
+      b(k) = 1.0;
+      ++k;
+    } else {
+      a(k, k) = p.real();
+      a(k, k + 1) = p.imag();
+      a(k + 1, k) = -p.imag();
+      a(k + 1, k + 1) = p.real();
+      b(k) = 2.0;
+      k += 2;
+    }
+  }
+  const Eigen::MatrixXd h = a - b * c.transpose() / d;
+  const Eigen::VectorXcd z = Eigen::EigenSolver<Eigen::MatrixXd>(h, false).eigenvalues();
+  std::vector<cd> out;
+  for (Eigen::Index i = 0; i < z.size(); ++i) {
+    cd p = z(i);
+    const double mag = std::abs(p);
+    if (std::abs(p.imag()) <= 1e-9 * mag) p = cd(p.real(), 0.0);
+    if (p.imag() < 0.0) continue;  // keep one of each conjugate pair
+    // Stability: reflect right-half-plane poles; nudge exact zeros left.
+    if (p.real() > 0.0) p = cd(-p.real(), p.imag());
+    if (p.real() == 0.0) p = cd(-1e-6 * std::max(mag, 1.0), p.imag());
+    out.push_back(p);
+  }
+  std::sort(out.begin(), out.end(), [](const cd& x, const cd& y) { return std::abs(x) < std::abs(y); });
+  return out;
+}
+
+}  // namespace
+
+std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int iterations) {
+  const int L = data.lines(), E = data.entries();
+  for (int it = 0; it < iterations; ++it) {
+    const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);  // L x (N+1)
+    const int n1 = static_cast<int>(phi.cols());
+    // Column scales so the per-entry QR sees columns of similar size.
+    Eigen::VectorXd col_scale(n1);
+    for (int c = 0; c < n1; ++c) col_scale(c) = 1.0 / std::max(phi.col(c).norm(), 1e-300);
+
+    Eigen::MatrixXd stacked(E * n1 + 1, n1);
+    Eigen::MatrixXd m(2 * L, 2 * n1);
+    double total = 0.0;
+    for (int e = 0; e < E; ++e) {
+      double hnorm = 0.0;
+      for (int l = 0; l < L; ++l) hnorm += std::norm(data.weight(l, e) * data.h(l, e));
+      hnorm = std::sqrt(hnorm / L);
+      total += hnorm * hnorm;
+      for (int l = 0; l < L; ++l) {
+        const double wt = data.weight(l, e);
+        const cd wh = wt * data.h(l, e);
+        for (int c = 0; c < n1; ++c) {
+          const cd a = wt * phi(l, c) * col_scale(c);
+          const cd b = -wh * phi(l, c) * col_scale(c) / std::max(hnorm, 1e-300);
+          m(l, c) = a.real();
+          m(L + l, c) = a.imag();
+          m(l, n1 + c) = b.real();
+          m(L + l, n1 + c) = b.imag();
+        }
+      }
+      Eigen::HouseholderQR<Eigen::MatrixXd> qr(m);
+      const Eigen::MatrixXd r = qr.matrixQR().topRows(2 * n1).triangularView<Eigen::Upper>();
+      // Scale back so every entry's block weighs by its own data.
+      stacked.block(e * n1, 0, n1, n1) = r.block(n1, n1, n1, n1) * hnorm;
+    }
+    // Relaxation: Re sum_l sigma(s_l) = L, weighted like the data.
+    const double relax = std::sqrt(total / E);
+    for (int c = 0; c < n1; ++c) stacked(E * n1, c) = relax * phi.col(c).real().sum() * col_scale(c) / L;
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(E * n1 + 1);
+    rhs(E * n1) = relax;
+    Eigen::VectorXd x = stacked.colPivHouseholderQr().solve(rhs);
+    x = x.cwiseProduct(col_scale);
+    double d = x(n1 - 1);
+    if (std::abs(d) < 1e-8) d = d < 0 ? -1e-8 : 1e-8;
+    poles = sigma_zeros(poles, x.head(n1 - 1), d);
+  }
+  return poles;
+}
+
+}  // namespace ambdiag::detail

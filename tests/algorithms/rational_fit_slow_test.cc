@@ -1,0 +1,12 @@
+// The full Cramer-Rao comparison of the issue: 200 noise realisations.
+#include "seven_mode.h"
+
+namespace ambdiag {
+namespace {
+
+TEST(RationalFitSlow, SevenModeErrorsOver200RealisationsWithin1p3OfCramerRao) {
+  seven_mode::expect_near_cramer_rao(200, 1.3, false);
+}
+
+}  // namespace
+}  // namespace ambdiag

@@ -1,0 +1,60 @@
+#include "ambdiag/algorithms/rational_fit.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <random>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/core/frf_data.h"
+#include "seven_mode.h"
+#include "test_support.h"
+
+namespace ambdiag {
+namespace {
+
+using namespace seven_mode;
+
+// 30 realisations: the RMSE itself scatters by about 1/sqrt(60) = 13 %, so
+// 1.6 leaves room for chance while a biased or inefficient estimator (LSCF:
+// 5-55 x the bound) fails.
+TEST(RationalFit, SevenModeErrorsStayNearCramerRaoBound) { expect_near_cramer_rao(30, 1.6, false); }
+
+TEST(RationalFit, ChoosesSevenModesAndReportsStandardDeviationsLikeTheBound) {
+  const FrfData f = read_frf_csv(testing::data_file("ident_7mode/frf.csv").string());
+  const RationalFitResult fit = fit_rational(f);
+  EXPECT_EQ(fit.selected_modes, 7);
+  EXPECT_NEAR(fit.report.chi2_per_dof, 1.0, 0.1);
+  ASSERT_EQ(fit.modes.size(), 7u);
+  const SevenMode sys;
+  for (size_t k = 0; k < 7; ++k) {
+    // The reported sd comes from the same Fisher information as the bound.
+    EXPECT_NEAR(fit.modes[k].f_sd_hz / sys.crlb[k]["fn_std_hz"].get<double>(), 1.0, 0.15) << k;
+    EXPECT_NEAR(fit.modes[k].zeta_sd / sys.crlb[k]["zeta_std"].get<double>(), 1.0, 0.15) << k;
+  }
+}
+
+// The reference pump: every truth mode with damping below 20 % within 0.5 %
+// in frequency and 10 % in damping, close forward/backward pairs included.
+TEST(RationalFit, IdentifiesReferencePumpModesIncludingCloseWhirlPairs) {
+  const FrfData f = read_frf_csv(testing::data_file("reference_pump/frf_ref_1.csv").string());
+  const RationalFitResult fit = fit_rational(f);
+  const json truth = load_json(testing::data_file("reference_pump/truth.json"));
+  EXPECT_NEAR(fit.report.chi2_per_dof, 1.0, 0.05);
+  for (const auto& t : truth["truth_modes"]) {
+    const double f0 = t["f_hz"].get<double>(), z0 = t["zeta"].get<double>();
+    if (z0 >= 0.2) continue;
+    const IdentifiedMode* best = nullptr;
+    for (const auto& m : fit.modes)
+      if (!best || std::abs(m.f_hz - f0) < std::abs(best->f_hz - f0)) best = &m;
+    ASSERT_NE(best, nullptr);
+    EXPECT_NEAR(best->f_hz, f0, 0.005 * f0) << t["label"] << " " << t["whirl"];
+    EXPECT_NEAR(best->zeta, z0, 0.10 * z0) << t["label"] << " " << t["whirl"];
+  }
+}
+
+}  // namespace
+}  // namespace ambdiag
