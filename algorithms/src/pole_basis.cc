@@ -75,7 +75,7 @@ LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles)
       b(l) = wt * data.h(l, e).real();
       b(L + l) = wt * data.h(l, e).imag();
     }
-    const Eigen::VectorXd c = a.colPivHouseholderQr().solve(b);
+    const Eigen::VectorXd c = a.householderQr().solve(b);
     out.cost += (a * c - b).squaredNorm();
     const auto r = residues_from_coefficients(poles, c);
     for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];

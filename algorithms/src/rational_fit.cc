@@ -89,13 +89,23 @@ Prepared prepare(const FrfData& frf, const RationalFitOptions& opt, int power) {
 // Principal responses of the weighted data (per-entry scalar weights) for
 // the order search: the poles are common, so a few dominant singular
 // directions carry them all at a fraction of the cost.
-FitData compress(const FitData& d, int max_responses) {
+FitData compress(const FitData& d, int max_responses, int max_lines) {
   const int L = d.lines(), E = d.entries();
   Eigen::VectorXd w_entry(E);
   for (int e = 0; e < E; ++e) w_entry(e) = std::sqrt(d.weight.col(e).array().square().mean());
   const Eigen::MatrixXcd y = d.h * w_entry.asDiagonal();
+  // Every `step`-th line: the order search needs the shape of the
+  // response, not every line; the final fits use all of them.
+  const int step = std::max(1, L / max_lines);
+  const int lk = (L + step - 1) / step;
+  Eigen::VectorXd w(lk);
+  Eigen::MatrixXcd ys(lk, E);
+  for (int i = 0; i < lk; ++i) {
+    w(i) = d.w(i * step);
+    ys.row(i) = y.row(i * step);
+  }
   if (E <= max_responses) {
-    FitData out{d.w, y, Eigen::MatrixXd::Ones(L, E)};
+    FitData out{w, ys, Eigen::MatrixXd::Ones(lk, E)};
     return out;
   }
   // Real combinations only: a complex one would break the conjugate symmetry
@@ -104,7 +114,7 @@ FitData compress(const FitData& d, int max_responses) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(gram);
   const int r = max_responses;
   const Eigen::MatrixXd v = es.eigenvectors().rightCols(r);
-  FitData out{d.w, y * v, Eigen::MatrixXd::Ones(L, r)};
+  FitData out{w, ys * v, Eigen::MatrixXd::Ones(lk, r)};
   return out;
 }
 
@@ -214,7 +224,7 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
   } else {
     // Order search on the principal responses, each order warm-started
     // from the previous one plus one new pair.
-    const FitData small = compress(data, 6);
+    const FitData small = compress(data, 6, 400);
     const int n_small = 2 * small.lines() * small.entries();
     std::vector<cd> prev;
     double best = std::numeric_limits<double>::infinity();
@@ -243,7 +253,6 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
         break;
       }
     }
-    poles = detail::vector_fit(data, poles, 3);
   }
   out.report.data_points = n_real;
   out.report.cost_start = detail::solve_residues(data, poles).cost;
