@@ -52,7 +52,8 @@ struct Point {
 };
 
 // Tracked modes of one speed, with repeated eigenvalues grouped.
-std::vector<Point> tracked_points(const ModalResult& r, double f_limit_hz, std::vector<Eigen::MatrixXcd>& groups) {
+std::vector<Point> tracked_points(const ModalResult& r, double f_limit_hz,
+                                  std::vector<Eigen::MatrixXcd>& groups) {
   std::vector<Point> pts;
   for (const auto& m : r.modes) {
     if (m.kind == "rotor" && !m.overdamped && m.f_hz > 0.0 && m.f_hz <= f_limit_hz && m.shape.size() > 0) {
@@ -182,9 +183,10 @@ CampbellResult campbell(const PlantModel& plant, const CampbellOptions& opt) {
   r.f_max_hz = opt.f_max_hz;
   const size_t n = static_cast<size_t>(opt.n_speeds);
   for (size_t i = 0; i < n; ++i) {
-    r.speeds_rpm.push_back(n == 1 ? opt.speed_min_rpm
-                                  : opt.speed_min_rpm + (opt.speed_max_rpm - opt.speed_min_rpm) *
-                                                            static_cast<double>(i) / static_cast<double>(n - 1));
+    r.speeds_rpm.push_back(n == 1
+                               ? opt.speed_min_rpm
+                               : opt.speed_min_rpm + (opt.speed_max_rpm - opt.speed_min_rpm) *
+                                                         static_cast<double>(i) / static_cast<double>(n - 1));
   }
 
   ModalOptions mo;
@@ -217,7 +219,8 @@ CampbellResult campbell(const PlantModel& plant, const CampbellOptions& opt) {
         pairs.emplace_back(m - kFreqWeight * std::min(df, 1.0), m, a, b);
       }
     }
-    std::sort(pairs.begin(), pairs.end(), [](const auto& x, const auto& y) { return std::get<0>(x) > std::get<0>(y); });
+    std::sort(pairs.begin(), pairs.end(),
+              [](const auto& x, const auto& y) { return std::get<0>(x) > std::get<0>(y); });
     std::vector<int> point_track(pts.size(), -1);
     std::vector<double> point_mac(pts.size(), kNan);
     std::vector<bool> live_used(live.size(), false);
@@ -265,15 +268,22 @@ CampbellResult campbell(const PlantModel& plant, const CampbellOptions& opt) {
     CampbellTrack& t = d.t;
     t.whirl = track_whirl(d, r.speeds_rpm);
     switch (t.whirl) {
-      case Whirl::forward: t.label = std::to_string(++n_fwd) + "F"; break;
-      case Whirl::backward: t.label = std::to_string(++n_bwd) + "B"; break;
-      case Whirl::none: t.label = "mode " + std::to_string(++n_other); break;
+      case Whirl::forward:
+        t.label = std::to_string(++n_fwd) + "F";
+        break;
+      case Whirl::backward:
+        t.label = std::to_string(++n_bwd) + "B";
+        break;
+      case Whirl::none:
+        t.label = "mode " + std::to_string(++n_other);
+        break;
     }
     for (size_t i = 0; i < n; ++i)
       if (d.repeated[i]) t.whirl_at[i] = t.whirl;
     stability(t, r.speeds_rpm);
     if (t.min_log_dec < -kNeutralLogDec) r.stable = false;
-    if (t.instability_onset_rpm && (!r.instability_onset_rpm || *t.instability_onset_rpm < *r.instability_onset_rpm)) {
+    if (t.instability_onset_rpm &&
+        (!r.instability_onset_rpm || *t.instability_onset_rpm < *r.instability_onset_rpm)) {
       r.instability_onset_rpm = t.instability_onset_rpm;
     }
     r.tracks.push_back(std::move(t));

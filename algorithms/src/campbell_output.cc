@@ -14,7 +14,9 @@ namespace {
 constexpr std::array<const char*, 8> kFamilyColors = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e",
                                                       "#9467bd", "#8c564b", "#e377c2", "#17becf"};
 
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
 
 nlohmann::json numbers(const std::vector<double>& v) {
   nlohmann::json a = nlohmann::json::array();
@@ -22,7 +24,9 @@ nlohmann::json numbers(const std::vector<double>& v) {
   return a;
 }
 
-nlohmann::json optional_number(const std::optional<double>& v) { return v ? number_or_null(*v) : nlohmann::json(nullptr); }
+nlohmann::json optional_number(const std::optional<double>& v) {
+  return v ? number_or_null(*v) : nlohmann::json(nullptr);
+}
 
 }  // namespace
 
@@ -54,7 +58,8 @@ std::string campbell_svg(const CampbellResult& r, const std::string& title) {
     damp.series.push_back(std::move(s));
   }
   for (const auto& m : r.fixed_modes) {
-    if (m.f_hz <= 0 || m.f_hz > r.f_max_hz || r.speeds_rpm.empty()) continue;
+    // Axial modes do not belong on a lateral diagram.
+    if (m.kind != "housing" || m.f_hz <= 0 || m.f_hz > r.f_max_hz || r.speeds_rpm.empty()) continue;
     SvgSeries s;
     s.label = m.label;
     s.x = {r.speeds_rpm.front(), r.speeds_rpm.back()};

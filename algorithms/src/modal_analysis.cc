@@ -42,10 +42,10 @@ void add_rotor_modes(const PlantModel& plant, double speed_rpm, const ModalOptio
   // condition grows with w_max^2 and with the condition of M.
   const Eigen::LLT<Eigen::MatrixXd> llt{Eigen::MatrixXd(sys.m)};
   if (llt.info() != Eigen::Success) throw InputError("mass matrix is not positive definite (negative or missing mass?)");
-  const auto l_inv = llt.matrixL();
+  const auto lower = llt.matrixL();
   auto congruent = [&](const Eigen::MatrixXd& x) {  // L^-1 x L^-T
-    const Eigen::MatrixXd y = l_inv.solve(x);
-    return Eigen::MatrixXd(l_inv.solve(y.transpose()).transpose());
+    const Eigen::MatrixXd y = lower.solve(x);
+    return Eigen::MatrixXd(lower.solve(y.transpose()).transpose());
   };
   const Eigen::MatrixXd kt = congruent(Eigen::MatrixXd(sys.k));
   const double s = std::max(std::sqrt(kt.norm() / std::sqrt(static_cast<double>(n))), 1e-300);

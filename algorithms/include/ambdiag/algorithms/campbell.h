@@ -33,7 +33,7 @@ namespace ambdiag {
 struct CampbellOptions {
   double speed_min_rpm = 0.0;
   double speed_max_rpm = 3000.0;
-  int n_speeds = 31;        // equally spaced, >= 2 (1 if min == max)
+  int n_speeds = 31;         // equally spaced, >= 2 (1 if min == max)
   double f_max_hz = 1000.0;  // tracks are reported if they come below this
   // A pair whose MAC is below this is not a continuation: the track ends and
   // the mode starts a new one (e.g. modes entering or leaving the band).
@@ -43,7 +43,7 @@ struct CampbellOptions {
 // One mode followed over the speeds. Entries are NaN (whirl none) at
 // speeds where the track does not exist.
 struct CampbellTrack {
-  std::string label;  // "1F", "2B", ...: whirl and rank among tracks of that whirl
+  std::string label;          // "1F", "2B", ...: whirl and rank among tracks of that whirl
   Whirl whirl = Whirl::none;  // the track's whirl (majority over speeds > 0)
   std::vector<double> f_hz;
   std::vector<double> zeta;
@@ -77,20 +77,20 @@ struct FixedMode {
 
 struct CampbellResult {
   std::vector<double> speeds_rpm;
-  std::vector<CampbellTrack> tracks;  // ordered by frequency at their first speed
+  std::vector<CampbellTrack> tracks;           // ordered by frequency at their first speed
   std::vector<CriticalSpeed> critical_speeds;  // ascending speed
   std::vector<FixedMode> fixed_modes;
   double f_max_hz = 0.0;
-  bool stable = true;  // every tracked mode has log_dec >= -1e-5 at every speed
+  bool stable = true;                           // every tracked mode has log_dec >= -1e-5 at every speed
   std::optional<double> instability_onset_rpm;  // lowest over the tracks
-  double worst_mac = 1.0;  // weakest accepted pairing: tracking quality
+  double worst_mac = 1.0;                       // weakest accepted pairing: tracking quality
 };
 
 // Throws InputError for invalid options or an invalid plant model.
 CampbellResult campbell(const PlantModel& plant, const CampbellOptions& options);
 
 // Frequency over speed (forward solid, backward dashed, the 1x line, critical
-// speeds as markers, housing modes grey) over a log decrement panel.
+// speeds as markers, radial housing modes grey) over a log decrement panel.
 std::string campbell_svg(const CampbellResult& result, const std::string& title = "Campbell diagram");
 // Missing entries (NaN) are written as null.
 nlohmann::json campbell_to_json(const CampbellResult& result);
