@@ -131,3 +131,47 @@ TEST(Cli, ConvertReadsForeignTimeDataToCsvAndRefusesTruncatedFiles) {
 
 }  // namespace
 }  // namespace ambdiag
+
+namespace ambdiag {
+namespace {
+
+TEST(CliFit, FitsTheSevenModeFileWithContractKeys) {
+  const Result r = run("fit " + data("ident_7mode/frf.csv") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["order"].get<int>(), 14);  // 7 pole pairs, as FREQID's order 14
+  ASSERT_EQ(j["modes"].size(), 7u);
+  double last = 0;
+  for (const auto& m : j["modes"]) {
+    for (const char* k : {"f_hz", "zeta", "f_sd_hz", "zeta_sd", "direction"}) EXPECT_TRUE(m.contains(k)) << k;
+    EXPECT_GT(m["f_hz"].get<double>(), last);
+    last = m["f_hz"].get<double>();
+  }
+}
+
+TEST(CliFit, LabelsReferencePumpModesAgainstTheModelLikeTableThree) {
+  const auto svg = testing::scratch_dir() / "stab.svg";
+  const Result r = run("fit " + data("reference_pump/frf_ref_2.csv") + " --model " + data("reference_pump/plant.json") +
+                       " --json --svg " + svg.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j.contains("unmatched_model_modes") && j.contains("unmatched_identified_modes"));
+  int labelled = 0;
+  for (const auto& m : j["modes"]) {
+    if (!m.contains("label")) continue;
+    ++labelled;
+    EXPECT_NEAR(m["f_hz"].get<double>(), m["model_f_hz"].get<double>(), 0.01 * m["model_f_hz"].get<double>()) << m["label"];
+  }
+  EXPECT_GE(labelled, 10);  // five whirl pairs, the housing and the axial mode: 12 in the band
+  EXPECT_TRUE(std::filesystem::exists(svg));
+}
+
+TEST(CliFit, RefusesAMalformedFrfFileWithExitThree) {
+  const auto bad = testing::write_scratch("bad.csv", "# ambdiag.frf/1\nfreq_hz,H_a_b_re,H_a_b_im\n1,0.1,x\n");
+  const Result r = run("fit " + bad.string() + " --json");
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("bad.csv"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace ambdiag
