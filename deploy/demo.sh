@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sets everything up on a fresh Debian 12 machine and runs the main job on the
 # embedded default: the offline analysis of the reference pump
-# (../shared/data/reference_pump): its modes, its simulated FRF matrix
-# compared with a measurement, and a UFF58 export.
+# (../shared/data/reference_pump): its modes, its simulated FRF matrix, the
+# modes identified from a measurement and labelled against the model, and a
+# UFF58 export.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${AMBDIAG_DATA:-../shared/data}
@@ -21,6 +22,9 @@ echo "== modes of the reference pump at its speed (ambdiag model modes)"
 echo
 echo "== simulated 5 x 5 FRF matrix, 1..1000 Hz (ambdiag model frf)"
 "$bin" model frf "$plant" -o "$out/model_frf.csv" --fmin 1 --fmax 1000 --df 1
+echo
+echo "== identified modes of a measurement, labelled against the model (ambdiag fit; Table 3 layout)"
+"$bin" fit "$data/reference_pump/frf_ref_1.csv" --model "$plant" --svg "$out/stabilization.svg"
 echo
 echo "== export to Universal File Format 58 (ambdiag convert)"
 "$bin" convert "$out/model_frf.csv" "$out/model_frf.uff"
