@@ -22,6 +22,7 @@ struct Command {
 // Each subcommand family registers itself here (model_commands.cc, ...).
 std::vector<Command> model_commands();
 std::vector<Command> convert_commands();
+std::vector<Command> estimate_commands();
 std::vector<Command> fit_commands();
 
 // Writes progress "label: done/total" on stderr, at most every 200 ms and at

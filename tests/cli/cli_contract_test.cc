@@ -10,6 +10,7 @@
 #include <string>
 
 #include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/run_recording.h"
 #include "ambdiag/core/uff58.h"
 #include "test_support.h"
 
@@ -171,6 +172,64 @@ TEST(CliFit, RefusesAMalformedFrfFileWithExitThree) {
   const Result r = run("fit " + bad.string() + " --json");
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("bad.csv"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace ambdiag
+
+namespace ambdiag {
+namespace {
+
+TEST(CliFrf, EstimatesAMultisineRunIntoAReadableFrfFile) {
+  const auto out = testing::scratch_dir() / "ref1.csv";
+  const Result r = run("frf " + data("reference_pump/run_ref_1") + " -o " + out.string() + " --json --plant " +
+                       data("reference_pump/plant.json"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["method"], "multisine");
+  EXPECT_EQ(j["lines"], 1000);
+  EXPECT_EQ(j["entries"], 25);
+  EXPECT_TRUE(j["warnings"].empty());
+  const FrfData f = read_frf_csv(out.string());
+  EXPECT_EQ(f.freq_hz.size(), 1000u);
+  ASSERT_EQ(f.entries.size(), 25u);
+  EXPECT_EQ(f.entries[0].sigma.size(), 1000u);
+  EXPECT_EQ(f.entries[0].coh.size(), 1000u);
+  EXPECT_EQ(f.meta("method"), "multisine");
+  EXPECT_EQ(f.meta("pump_id"), "P-101");
+  EXPECT_EQ(f.speed_rpm, 2950.0);
+}
+
+TEST(CliFrf, BrokenRunExitsThreeNamingTheFolderAndTheChannel) {
+  RunRecording bad = read_run(data("reference_pump/run_ref_1"));
+  const int c = bad.channel_index("rZ");
+  for (int64_t t = 0; t < bad.frame_count(); ++t) bad.samples[static_cast<size_t>(t) * bad.channels.size() + c] = 0;
+  const auto scratch = testing::scratch_dir(), dir = scratch / "zero_reference_run";
+  write_run(dir.string(), bad);
+  const Result r = run("frf " + dir.string() + " -o " + (scratch / "x.csv").string());
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("zero_reference_run"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("reference channel rZ"), std::string::npos) << r.err;
+}
+
+TEST(CliFrf, WarningsGoToStderrAndToTheFileMetadata) {
+  const auto out = testing::scratch_dir() / "amrotor.csv";
+  const Result r = run("frf " + data("external/amrotor_mlps_sweep") + " -o " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("warning"), std::string::npos) << r.err;
+  const FrfData f = read_frf_csv(out.string());
+  EXPECT_TRUE(f.meta("warning_1").has_value());
+  EXPECT_EQ(f.quantity, FrfQuantity::accelerance);
+  EXPECT_EQ(f.unit, "(m/s^2)/V");
+}
+
+TEST(CliFrf, UsageErrorsExitTwo) {
+  EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1")).code, 2);  // no -o
+  EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1") + " -o x.csv --method h2").code, 2);
+  EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1") + " -o x.csv --nfft 1001").code, 2);
+  const Result h = run("frf --help");
+  EXPECT_EQ(h.code, 0);
+  EXPECT_NE(h.out.find("usage: ambdiag frf"), std::string::npos);
 }
 
 }  // namespace
