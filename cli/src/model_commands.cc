@@ -1,13 +1,16 @@
 // `ambdiag model modes|frf`: the plant model's modes and FRF matrix.
+#include <algorithm>
 #include <cstdio>
 #include <limits>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
+#include "ambdiag/algorithms/campbell.h"
 #include "ambdiag/algorithms/frf_synthesis.h"
 #include "ambdiag/algorithms/modal_analysis.h"
 #include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"
 #include "args.h"
 #include "command.h"
@@ -99,6 +102,38 @@ int run_frf(const std::vector<std::string>& argv) {
   return kExitOk;
 }
 
+int run_campbell(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--speed-min", "--speed-max", "--steps", "--fmax", "--svg"}, {"--json"});
+  args.expect_positional(1, "PLANT.json");
+  const PlantModel plant = read_plant_file(args.positional()[0]);
+  CampbellOptions opt;
+  opt.speed_min_rpm = args.number("--speed-min").value_or(0.0);
+  opt.speed_max_rpm = args.number("--speed-max").value_or(std::max(1.2 * plant.speed_rpm, 1000.0));
+  opt.n_speeds = static_cast<int>(args.number("--steps").value_or(31));
+  opt.f_max_hz = args.number("--fmax").value_or(1000.0);
+  if (opt.speed_min_rpm < 0 || opt.speed_max_rpm < opt.speed_min_rpm) throw UsageError("need 0 <= --speed-min <= --speed-max");
+  if (opt.n_speeds < 2 || opt.n_speeds > 2000) throw UsageError("--steps: must be in 2..2000");
+  if (!(opt.f_max_hz > 0)) throw UsageError("--fmax: must be > 0");
+  Progress progress("model campbell", opt.n_speeds);
+  const CampbellResult r = campbell(plant, opt);
+  progress.finish();
+  if (auto svg = args.option("--svg")) write_file_atomic(*svg, campbell_svg(r, "Campbell diagram: " + plant.name));
+  if (args.flag("--json")) {
+    std::cout << campbell_to_json(r).dump(2) << "\n";
+    return kExitOk;
+  }
+  std::printf("%s: %zu tracked modes below %.0f Hz over %.0f..%.0f rpm; %s\n", plant.name.c_str(), r.tracks.size(),
+              opt.f_max_hz, opt.speed_min_rpm, opt.speed_max_rpm,
+              r.stable ? "stable at every speed" : "UNSTABLE above some speed");
+  std::printf("critical speeds (1x):\n");
+  for (const auto& c : r.critical_speeds) {
+    std::printf("  %9.1f rpm  %8.2f Hz  %-4s %-8s log dec %.3f\n", c.speed_rpm, c.f_hz, c.label.c_str(),
+                to_string(c.whirl).c_str(), c.log_dec);
+  }
+  if (r.instability_onset_rpm) std::printf("onset of instability: %.1f rpm\n", *r.instability_onset_rpm);
+  return kExitOk;
+}
+
 }  // namespace
 
 std::vector<Command> model_commands() {
@@ -124,6 +159,14 @@ std::vector<Command> model_commands() {
        "  --method direct  sparse complex LU per line (default)\n"
        "  --method modal   superposition of the first-order eigenvectors\n",
        run_frf},
+      {{"model", "campbell"},
+       "Campbell diagram, critical speeds and stability",
+       "usage: ambdiag model campbell PLANT.json [--speed-min RPM] [--speed-max RPM] [--steps N]\n"
+       "                              [--fmax HZ] [--json] [--svg FILE]\n\n"
+       "Modes over a speed range (default 0 .. 1.2 x the model's speed, 31 steps), tracked\n"
+       "across speeds by mode-shape MAC (not re-sorted by frequency), with log decrements,\n"
+       "critical speeds where a track crosses the 1x line, and the onset of instability.\n",
+       run_campbell},
   };
 }
 

@@ -234,3 +234,20 @@ TEST(CliFrf, UsageErrorsExitTwo) {
 
 }  // namespace
 }  // namespace ambdiag
+
+namespace ambdiag {
+namespace {
+
+TEST(CliCampbell, ReportsTracksCriticalSpeedsAndAnSvg) {
+  const auto svg = testing::scratch_dir() / "campbell.svg";
+  const Result r = run("model campbell " + data("reference_pump/plant.json") + " --steps 7 --json --svg " + svg.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_GE(j["tracks"].size(), 8u);
+  EXPECT_TRUE(j.contains("critical_speeds"));
+  EXPECT_TRUE(std::filesystem::exists(svg));
+  EXPECT_EQ(run("model campbell " + data("reference_pump/plant.json") + " --steps 1").code, 2);
+}
+
+}  // namespace
+}  // namespace ambdiag
