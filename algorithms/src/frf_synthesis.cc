@@ -1,5 +1,6 @@
 #include "ambdiag/algorithms/frf_synthesis.h"
 
+#include <chrono>
 #include <cmath>
 #include <string>
 
@@ -20,8 +21,17 @@ std::vector<double> frequency_grid(double fmin_hz, double fmax_hz, double df_hz)
   return f;
 }
 
+namespace detail {
+
+double now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+double seconds_since(double start_s) { return now_s() - start_s; }
+
+}  // namespace detail
+
 FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vector<double>& freq_hz,
-                       const FrfSynthesisOptions& options) {
+                       const FrfSynthesisOptions& options, FrfReport* report) {
   if (plant.sensors.empty() || plant.actuators.empty()) throw InputError("an FRF needs sensors and actuators in the model");
   for (size_t i = 0; i < freq_hz.size(); ++i) {
     if (!(freq_hz[i] > 0) || !std::isfinite(freq_hz[i])) throw InputError("frequency " + std::to_string(i) + ": must be > 0");
@@ -30,10 +40,27 @@ FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vec
   std::vector<double> w(freq_hz.size());
   for (size_t i = 0; i < w.size(); ++i) w[i] = 2.0 * M_PI * freq_hz[i];
 
-  const RotorSystem sys = assemble_rotor(plant, speed_rpm);
+  if (!(options.krylov_tol > 0.0)) throw InputError("krylov_tol: must be > 0");
+  FrfReport rep;
+  const double t0 = detail::now_s();
+  StructuralDampingOptions damping = options.damping;
+  if (!w.empty()) damping.omega_max_rad_per_s = w.back();
+  const RotorSystem sys = assemble_rotor(plant, speed_rpm, damping);
+  rep.damping_modes_per_plane = sys.damping_modes_per_plane;
+  rep.damping_cutoff_hz = sys.damping_cutoff_rad_per_s / (2.0 * M_PI);
   const detail::LateralMaps maps = detail::lateral_maps(plant, sys);
-  const Eigen::MatrixXcd lat = options.method == FrfMethod::modal ? detail::lateral_frf_modal(sys, maps, w)
-                                                                  : detail::lateral_frf_direct(sys, maps, w);
+  rep.assembly_s = detail::seconds_since(t0);
+  constexpr int kAllModesMaxStates = 400;
+  const bool krylov = options.modal_basis == ModalBasis::krylov ||
+                      (options.modal_basis == ModalBasis::automatic && 2 * sys.size() > kAllModesMaxStates);
+  Eigen::MatrixXcd lat;
+  if (options.method == FrfMethod::direct) {
+    lat = detail::lateral_frf_direct(sys, maps, w, rep);
+  } else if (krylov) {
+    lat = detail::lateral_frf_modal_krylov(sys, maps, w, options.krylov_tol, rep);
+  } else {
+    lat = detail::lateral_frf_modal(sys, maps, w, rep);
+  }
 
   FrfData out;
   out.freq_hz = freq_hz;
@@ -42,6 +69,7 @@ FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vec
   out.set_meta("quantity", "compliance");
   out.set_meta("unit", "m/N");
   out.set_meta("source", "ambdiag model frf (" + std::string(options.method == FrfMethod::modal ? "modal" : "direct") + ")");
+  if (rep.krylov_size > 0) out.set_meta("krylov_residual", std::to_string(rep.krylov_residual));
   // Position of each sensor/actuator among the lateral ones (-1: axial).
   std::vector<int> lat_out(plant.sensors.size(), -1), lat_in(plant.actuators.size(), -1);
   for (size_t k = 0; k < maps.sensor_index.size(); ++k) lat_out[static_cast<size_t>(maps.sensor_index[k])] = static_cast<int>(k);
@@ -62,6 +90,7 @@ FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vec
       out.entries.push_back(std::move(e));
     }
   }
+  if (report) *report = rep;
   return out;
 }
 

@@ -83,4 +83,53 @@ void KluComplex::solve_in_place(Eigen::MatrixXcd& b) const {
   }
 }
 
+struct KluReal::State {
+  klu_common common{};
+  klu_symbolic* symbolic = nullptr;
+  klu_numeric* numeric = nullptr;
+  double rcond = 0.0;
+
+  ~State() {
+    if (numeric) klu_free_numeric(&numeric, &common);
+    if (symbolic) klu_free_symbolic(&symbolic, &common);
+  }
+  void check(const char* what) const {
+    if (common.status < KLU_OK) throw std::runtime_error(std::string("KLU ") + what + " failed, status " +
+                                                         std::to_string(common.status));
+  }
+};
+
+KluReal::KluReal(const Matrix& a) : state_(std::make_unique<State>()) {
+  if (!a.isCompressed()) throw std::logic_error("KluReal: matrix must be compressed");
+  State& s = *state_;
+  klu_defaults(&s.common);
+  const int n = static_cast<int>(a.rows());
+  int* ap = const_cast<int*>(a.outerIndexPtr());
+  int* ai = const_cast<int*>(a.innerIndexPtr());
+  s.symbolic = klu_analyze(n, ap, ai, &s.common);
+  if (!s.symbolic) s.check("analyze");
+  s.numeric = klu_factor(ap, ai, const_cast<double*>(a.valuePtr()), s.symbolic, &s.common);
+  if (!s.numeric) {
+    if (s.common.status == KLU_SINGULAR) return;
+    s.check("factor");
+  }
+  if (!klu_rcond(s.symbolic, s.numeric, &s.common)) s.check("rcond");
+  s.rcond = s.common.rcond;
+}
+
+KluReal::~KluReal() = default;
+KluReal::KluReal(KluReal&&) noexcept = default;
+KluReal& KluReal::operator=(KluReal&&) noexcept = default;
+
+double KluReal::rcond() const { return state_->numeric ? state_->rcond : 0.0; }
+
+void KluReal::solve_in_place(Eigen::MatrixXd& b) const {
+  State& s = *state_;
+  if (!s.numeric) throw std::logic_error("KluReal: solve with a singular matrix");
+  if (b.cols() == 0) return;
+  if (!klu_solve(s.symbolic, s.numeric, static_cast<int>(b.rows()), static_cast<int>(b.cols()), b.data(), &s.common)) {
+    s.check("solve");
+  }
+}
+
 }  // namespace ambdiag::detail

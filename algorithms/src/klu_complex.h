@@ -36,4 +36,28 @@ class KluComplex {
   std::unique_ptr<State> state_;
 };
 
+// The same for one real matrix: one factorization, many solves.
+class KluReal {
+ public:
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  // Analyses and factorizes `a` (compressed). Throws std::runtime_error on a
+  // KLU failure other than singularity.
+  explicit KluReal(const Matrix& a);
+  ~KluReal();
+  KluReal(KluReal&&) noexcept;
+  KluReal& operator=(KluReal&&) noexcept;
+  KluReal(const KluReal&) = delete;
+  KluReal& operator=(const KluReal&) = delete;
+
+  // Reciprocal pivot ratio of the factorization (KLU's rcond); 0 if singular.
+  double rcond() const;
+  // Solves A X = B in place; B column-major.
+  void solve_in_place(Eigen::MatrixXd& b) const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
 }  // namespace ambdiag::detail

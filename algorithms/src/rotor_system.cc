@@ -1,9 +1,10 @@
 #include "ambdiag/algorithms/rotor_system.h"
 
 #include <Eigen/Dense>
-#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include "ambdiag/core/error.h"
@@ -44,32 +45,6 @@ void add_gyroscopic(Triplets& t, int node, const detail::Matrix4& rp) {
   }
 }
 
-// Plane matrices (2 DOF per node) of the bare rotor: shaft and disks.
-void plane_matrices(const PlantModel& p, Eigen::SparseMatrix<double>& k, Eigen::SparseMatrix<double>& m) {
-  const int n = 2 * p.node_count();
-  Triplets tk, tm;
-  for (size_t i = 0; i < p.shaft.size(); ++i) {
-    const auto& e = p.shaft[i];
-    const auto& mat = p.materials.at(e.material);
-    const detail::Matrix4 ke = detail::beam_stiffness(e, mat);
-    const detail::Matrix4 me = detail::beam_translational_mass(e, mat) + detail::beam_rotary_mass(e, mat);
-    const int base = 2 * static_cast<int>(i);
-    for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c) {
-        tk.emplace_back(base + r, base + c, ke(r, c));
-        tm.emplace_back(base + r, base + c, me(r, c));
-      }
-  }
-  for (const auto& d : p.disks) {
-    tm.emplace_back(2 * d.node, 2 * d.node, d.m_kg);
-    tm.emplace_back(2 * d.node + 1, 2 * d.node + 1, d.id_kg_m2);
-  }
-  k.resize(n, n);
-  m.resize(n, n);
-  k.setFromTriplets(tk.begin(), tk.end());
-  m.setFromTriplets(tm.begin(), tm.end());
-}
-
 // Embeds a plane mode (w, theta per node) in the full lateral DOFs.
 void embed_plane_mode(const Eigen::VectorXd& phi, bool y_plane, Eigen::Ref<Eigen::VectorXd> out) {
   const int nodes = static_cast<int>(phi.size()) / 2;
@@ -79,6 +54,27 @@ void embed_plane_mode(const Eigen::VectorXd& phi, bool y_plane, Eigen::Ref<Eigen
     out(4 * n + dofs[0]) = phi(2 * n);
     out(4 * n + dofs[1]) = (y_plane ? -1.0 : 1.0) * phi(2 * n + 1);
   }
+}
+
+// Whether C_s uses every free-free mode (the definition) or a band.
+bool all_damping_modes(const PlantModel& p, const StructuralDampingOptions& o) {
+  using Modes = StructuralDampingOptions::Modes;
+  const int plane_dofs = 2 * p.node_count();
+  const bool have_band = o.omega_max_rad_per_s > 0.0 && std::isfinite(o.omega_max_rad_per_s);
+  if (o.modes == Modes::band && !have_band) {
+    throw InputError("structural damping: a band of modes needs the highest frequency of interest");
+  }
+  if (o.modes == Modes::band && !(o.band_factor >= 1.0)) throw InputError("structural damping: band_factor must be >= 1");
+  const bool all = o.modes == Modes::all ||
+                   (o.modes == Modes::automatic && (plane_dofs <= o.all_modes_max_plane_dofs || !have_band));
+  // Every mode of a plane means a dense eigenproblem and a dense C_s.
+  constexpr int kMaxAllModesPlaneDofs = 2000;
+  if (all && plane_dofs > kMaxAllModesPlaneDofs) {
+    throw InputError("structural_damping: " + std::to_string(p.shaft.size()) +
+                     " shaft elements are too many to damp every free-free mode; give a highest frequency of "
+                     "interest (f_max) so that the modes in a band carry it");
+  }
+  return all;
 }
 
 }  // namespace
@@ -119,26 +115,7 @@ Eigen::MatrixXd first_order_matrix(const RotorSystem& sys) {
   return a;
 }
 
-PlaneModes free_free_plane_modes(const PlantModel& plant, int count) {
-  Eigen::SparseMatrix<double> k, m;
-  plane_matrices(plant, k, m);
-  // Dense generalized symmetric eigenproblem; M is positive definite for any
-  // shaft with positive density, K is singular (two rigid-body modes).
-  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es{Eigen::MatrixXd(k), Eigen::MatrixXd(m)};
-  if (es.info() != Eigen::Success) throw InputError("free-free rotor: eigenproblem failed (singular mass matrix?)");
-  const int n = static_cast<int>(k.rows());
-  const int keep = count < 0 ? n : std::min(count, n);
-  PlaneModes out;
-  out.omega_rad_per_s.resize(keep);
-  out.shapes = es.eigenvectors().leftCols(keep);
-  for (int i = 0; i < keep; ++i) {
-    const double lam = es.eigenvalues()(i);
-    out.omega_rad_per_s(i) = (i < 2 || lam <= 0.0) ? 0.0 : std::sqrt(lam);
-  }
-  return out;
-}
-
-RotorSystem assemble_rotor(const PlantModel& p, double speed_rpm) {
+RotorSystem assemble_rotor(const PlantModel& p, double speed_rpm, const StructuralDampingOptions& damping) {
   validate_plant(p);
   const int nodes = p.node_count();
   const int n = 4 * nodes;
@@ -194,8 +171,14 @@ RotorSystem assemble_rotor(const PlantModel& p, double speed_rpm) {
     return s;
   }
 
-  const int per_plane = reduce ? 2 + p.reduction.n_elastic_modes : -1;
-  const PlaneModes pm = free_free_plane_modes(p, per_plane);
+  PlaneModeOptions po;
+  if (reduce) {
+    po.max_elastic = p.reduction.n_elastic_modes;
+  } else if (!all_damping_modes(p, damping)) {
+    po.omega_max_rad_per_s = damping.band_factor * damping.omega_max_rad_per_s;
+    s.damping_cutoff_rad_per_s = po.omega_max_rad_per_s;
+  }
+  const PlaneModes pm = free_free_plane_modes(p, po);
   const int nm = static_cast<int>(pm.omega_rad_per_s.size());
   // Full-DOF shapes of both planes: columns [x-plane modes, y-plane modes].
   Eigen::MatrixXd phi(n, 2 * nm);
@@ -206,6 +189,7 @@ RotorSystem assemble_rotor(const PlantModel& p, double speed_rpm) {
   // C_s = M Phi diag(2 zeta w) Phi^T M over elastic modes (rigid-body: none).
   Eigen::VectorXd d = Eigen::VectorXd::Zero(2 * nm);
   if (modal_damping) {
+    s.damping_modes_per_plane = std::max(0, nm - 2);
     for (int i = 2; i < nm; ++i) {
       d(i) = d(nm + i) = 2.0 * p.structural_damping.zeta * pm.omega_rad_per_s(i);
     }
