@@ -241,9 +241,21 @@ FrfEstimate estimate_frf(const RunRecording& run, const FrfEstimationOptions& op
       est = estimate_stepsine(run, plan, options);
       break;
     case ExcitationType::chirp:
-    case ExcitationType::random:
-      est = estimate_welch(run, plan, options);
+    case ExcitationType::random: {
+      NonperiodicMethod m = options.method;
+      if (m == NonperiodicMethod::automatic) {
+        m = run.excitation->type == ExcitationType::chirp ? NonperiodicMethod::gated
+                                                          : NonperiodicMethod::welch;
+      }
+      if (m == NonperiodicMethod::gated) {
+        est = estimate_gated(run, plan, options);
+      } else if (m == NonperiodicMethod::lpm) {
+        est = estimate_lpm(run, plan, options);
+      } else {
+        est = estimate_welch(run, plan, options);
+      }
       break;
+    }
     case ExcitationType::none:
       break;
   }

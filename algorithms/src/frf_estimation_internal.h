@@ -72,6 +72,11 @@ struct LineSolution {
 // amplification of X F^-1; h is empty when the solve is impossible.
 LineSolution solve_line(const std::vector<Experiment>& experiments, int n_out, int n_in);
 
+// Reciprocal 2-norm condition number of a matrix after scaling its rows to
+// unit norm (inputs differ in unit and amplitude; the experiments' own
+// amplitudes are information and stay); 0 if a row is zero.
+double row_scaled_rcond(const Eigen::MatrixXcd& a);
+
 // coh = |H|^2 / (|H|^2 + n sigma^2), the inverse of Bendat & Piersol's
 // sigma^2 = (1 - coh) |H|^2 / (n coh).
 double coherence_from_sigma(std::complex<double> h, double sigma, double averages);
@@ -110,5 +115,9 @@ FrfEstimate estimate_multisine(const RunRecording& run, const frf_estimation::Ch
 FrfEstimate estimate_stepsine(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
                               const FrfEstimationOptions& options);
 FrfEstimate estimate_welch(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
+                           const FrfEstimationOptions& options);
+FrfEstimate estimate_lpm(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
+                         const FrfEstimationOptions& options);
+FrfEstimate estimate_gated(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
                            const FrfEstimationOptions& options);
 }  // namespace ambdiag

@@ -8,11 +8,6 @@
 
 namespace ambdiag::frf_estimation {
 
-namespace {
-
-// Reciprocal 2-norm condition number of a matrix after scaling its rows to
-// unit norm (inputs differ in unit and amplitude; the experiments' own
-// amplitudes are information and stay).
 double row_scaled_rcond(const Eigen::MatrixXcd& a) {
   Eigen::MatrixXcd s = a;
   for (Eigen::Index i = 0; i < s.rows(); ++i) {
@@ -23,8 +18,6 @@ double row_scaled_rcond(const Eigen::MatrixXcd& a) {
   const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXcd>(s).singularValues();
   return sv(0) > 0.0 ? sv(sv.size() - 1) / sv(0) : 0.0;
 }
-
-}  // namespace
 
 LineSolution solve_line(const std::vector<Experiment>& experiments, int n_out, int n_in) {
   LineSolution sol;

@@ -42,16 +42,22 @@ constexpr double kCoherenceWindowFraction = 1e-2;
 // excited lines (a sweep's tapered ends) are dropped with a warning.
 constexpr double kWeakLineFraction = 1e-2;
 
-long default_nfft(int64_t longest_segment, int64_t total) {
-  // Largest power of two with at least 8 windows' worth of data, within one segment.
+long default_nfft(int64_t longest_segment, int64_t total, ExcitationType type) {
+  // Largest power of two with at least `min_windows` windows' worth of data,
+  // within one segment. Random excitation: 8 (15 half-overlapping windows,
+  // the usual compromise of noise against window truncation bias). A sweep
+  // excites each line once, so averaging gains nothing, while a line's
+  // response must ring out inside the window that holds its passage: 4
+  // (7 windows), leaving 6 degrees of freedom for the noise estimate.
+  const int64_t min_windows = type == ExcitationType::chirp ? 4 : 8;
   long n = 64;
-  while (2 * n <= 65536 && 2 * n * 8 <= total && 2 * n <= longest_segment) n *= 2;
+  while (2 * n <= 65536 && 2 * n * min_windows <= total && 2 * n <= longest_segment) n *= 2;
   return n;
 }
 
-std::string method_name(WelchEstimator e, bool inputs_are_references) {
-  if (e == WelchEstimator::hv) return "welch-hv";
-  if (e == WelchEstimator::h1 || inputs_are_references) return "welch-h1";
+std::string method_name(NonperiodicMethod m, bool inputs_are_references) {
+  if (m == NonperiodicMethod::hv) return "welch-hv";
+  if (m == NonperiodicMethod::h1 || inputs_are_references) return "welch-h1";
   return "welch-ref";
 }
 
@@ -61,7 +67,7 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
                            const FrfEstimationOptions& options) {
   const Excitation& ex = *run.excitation;
   FrfEstimate est;
-  est.method = method_name(options.welch, plan.inputs_are_references);
+  est.method = method_name(options.method, plan.inputs_are_references);
   const int n_in = plan.n_in(), n_out = plan.n_out();
 
   frf_estimation::Windows segments;
@@ -71,7 +77,7 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
     longest = std::max(longest, s.length);
     total += s.length;
   }
-  const long nfft = options.nfft > 0 ? options.nfft : default_nfft(longest, total);
+  const long nfft = options.nfft > 0 ? options.nfft : default_nfft(longest, total, ex.type);
   const long hop = nfft / 2;
   frf_estimation::Windows windows;  // (start, segment) of each window; consecutive ones overlap
   std::vector<bool> follows;        // window k overlaps window k-1
@@ -110,7 +116,8 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
   const long nb = k_hi - k_lo + 1;
 
   // Channels: z = [outputs; inputs], then the instruments w.
-  const bool use_refs = options.welch == WelchEstimator::automatic && !plan.inputs_are_references;
+  const bool use_refs = options.method != NonperiodicMethod::h1 && options.method != NonperiodicMethod::hv &&
+                        !plan.inputs_are_references;
   std::vector<int> chans = plan.measured_channels();
   const auto nz = static_cast<Eigen::Index>(chans.size());
   if (use_refs) chans.insert(chans.end(), plan.reference_channels.begin(), plan.reference_channels.end());
@@ -228,7 +235,7 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
     out.note_rcond(f_hz, rcond, options.warn_rcond);
     const Eigen::MatrixXcd g = s_fw.fullPivLu().inverse();
     Eigen::MatrixXcd h = s_xw * g;
-    if (options.welch == WelchEstimator::hv) {
+    if (options.method == NonperiodicMethod::hv) {
       // Per output: null direction of [S_ff S_fx; S_xf S_xx] (Hermitian).
       Eigen::MatrixXcd c(n_in + 1, n_in + 1);
       for (int o = 0; o < n_out; ++o) {

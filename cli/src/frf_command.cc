@@ -25,12 +25,18 @@ int run_frf_estimate(const std::vector<std::string>& argv) {
   if (!out_path) throw UsageError("missing -o FRF.csv");
   FrfEstimationOptions opt;
   const std::string method = args.option("--method").value_or("auto");
-  if (method == "h1") {
-    opt.welch = WelchEstimator::h1;
+  if (method == "gated") {
+    opt.method = NonperiodicMethod::gated;
+  } else if (method == "lpm") {
+    opt.method = NonperiodicMethod::lpm;
+  } else if (method == "welch") {
+    opt.method = NonperiodicMethod::welch;
+  } else if (method == "h1") {
+    opt.method = NonperiodicMethod::h1;
   } else if (method == "hv") {
-    opt.welch = WelchEstimator::hv;
+    opt.method = NonperiodicMethod::hv;
   } else if (method != "auto") {
-    throw UsageError("--method: must be auto, h1 or hv");
+    throw UsageError("--method: must be auto, gated, lpm, welch, h1 or hv");
   }
   if (const auto n = args.number("--nfft")) {
     if (!(*n >= 4 && *n <= 1 << 24 && *n == static_cast<double>(static_cast<long>(*n)) &&
@@ -98,23 +104,24 @@ std::vector<Command> estimate_commands() {
   return {
       {{"frf"},
        "FRF matrix estimated from a time-domain run recording",
-       "usage: ambdiag frf RUN_DIR -o FRF.csv [--plant PLANT.json] [--method auto|h1|hv] [--nfft N] "
-       "[--json]\n\n"
+       "usage: ambdiag frf RUN_DIR -o FRF.csv [--plant PLANT.json] [--method M] [--nfft N] [--json]\n\n"
        "Estimates H = response / input (with sigma_ and coh_ columns) from a run recording and writes\n"
        "an ambdiag.frf/1 file. Inputs are the measured forces, with the noise-free references as\n"
        "instruments (unbiased in the closed AMB loop); runs without force channels give H relative to\n"
        "the reference. By excitation type:\n"
        "  multisine  per segment the settle periods dropped, the periods' DFTs averaged; X = H F per line\n"
        "  stepsine   lock-in DFT of each step's whole periods; the steps at one frequency solved together\n"
-       "  chirp, random  Welch averaging (Hann, 50 % overlap)\n"
-       "Warnings (dropped lines or segments, no sigma) go to stderr and to `# warning_N:` lines of the "
-       "file.\n"
-       "A run that gives no trustworthy estimate (clipped or dead channel, zero reference, too few\n"
-       "independent segments) exits 3 with the reason.\n\n"
+       "  chirp      whole-sweep spectra, impulse responses time-gated (noise outside the gate removed)\n"
+       "  random     Welch averaging (Hann, 50 % overlap)\n"
+       "Warnings (dropped lines or segments, no sigma) go to stderr and to `# warning_N:` lines of the\n"
+       "file. A run that gives no trustworthy estimate (clipped or dead channel, zero reference, too\n"
+       "few independent segments) exits 3 with the reason.\n\n"
        "  -o FRF.csv       output file\n"
        "  --plant FILE     check that every channel names a sensor or actuator of this plant model\n"
-       "  --method M       Welch estimator: auto (references as instruments; H1 when the input is the\n"
-       "                   reference), h1 (S_xf S_ff^-1 on the measured inputs), hv (total least squares)\n"
+       "  --method M       chirp and random runs: auto (gated for a chirp, welch for random), gated,\n"
+       "                   lpm (local polynomial method on whole segments), welch (references as\n"
+       "                   instruments; H1 when the input is the reference), h1 (S_xf S_ff^-1 on the\n"
+       "                   measured inputs, biased in closed loop), hv (total least squares)\n"
        "  --nfft N         Welch window length in samples (default: from the run length)\n"
        "  --json           print a JSON summary on stdout: method, lines, entries, warnings, ...\n",
        run_frf_estimate},

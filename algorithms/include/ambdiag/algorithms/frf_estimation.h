@@ -11,43 +11,56 @@
 //
 //   H = S_xr S_fr^-1                                                    (1)
 //
-// where S_ab = sum_k a_k b_k^H over experiments k (periodic methods) or
-// windows k (Welch). The noise on x and f is uncorrelated with r, so
-// E[S_xr] = H E[S_fr] and (1) is consistent whatever the feedback; with one
-// experiment per input it reduces to H = X F^-1 on averaged spectra, whose
-// errors-in-variables bias is O(sigma_F^2 / |F|^2 / M) for M averages.
-// First-order error: dH = sum_k e_k g_k with the residual e_k = x_k - H f_k
-// and g_k = r_k^H S_fr^-1, hence per entry
+// where S_ab = sum_k a_k b_k^H over experiments k (periodic methods, whole
+// sweeps) or windows k (Welch). The noise on x and f is uncorrelated with r,
+// so E[S_xr] = H E[S_fr] and (1) is consistent whatever the feedback; with
+// one experiment per input it reduces to H = X F^-1 on averaged spectra,
+// whose errors-in-variables bias is O(sigma_F^2 / |F|^2 / M) for M
+// averages. First-order error: dH = sum_k e_k g_k with the residual
+// e_k = x_k - H f_k and g_k = r_k^H S_fr^-1, hence per entry
 //
 //   sigma^2[o][i] = sum_k var(e_k[o]) |g_k[i]|^2.                         (2)
 //
 //  - multisine: per segment, settle periods dropped, each remaining period's
 //    DFT at the excited bins (reference energy between f_min_hz and
 //    f_max_hz), averaged; experiments are the segments; var(e_k) from the
-//    period-to-period covariance of [x; f] divided by the number of periods.
+//    period-to-period covariance of [x; f], pooled over the segments,
+//    divided by the segment's number of periods.
 //  - stepsine: per segment, a single-bin DFT of the last meas_samples
 //    (whole periods, no leakage); the segments at one frequency (one per
 //    input) are the experiments; var(e_k) from the noise covariance of
-//    [x; f] at the neighbouring, unexcited bins of the same window.
-//  - chirp, random: Welch (Hann windows, 50 % overlap, within segments);
-//    (1) over windows with the references as instruments (`automatic`), or
-//    H1 = S_xf S_ff^-1 (`h1`, biased in closed loop), or Hv, the total least
-//    squares solution per output (`hv`). var(e) = sum_k |e_k|^2 / (K - n_in),
-//    and (2) includes the correlation of adjacent half-overlapping Hann
-//    windows (noise DFTs correlated by (-1)^m / 3 at bin m).
+//    [x; f] at the neighbouring, unexcited bins of the same windows.
+//  - chirp (`gated`, the default): (1) on whole-sweep spectra, then the
+//    impulse responses time-gated to where they have decayed into the
+//    noise; sigma from the same gate placed in the noise-only part
+//    (gated_estimator.cc). `lpm`: the local polynomial method on whole
+//    sweeps (lpm_estimator.cc), unbiased too but keeps the whole record's
+//    noise.
+//  - random (and a chirp on request): Welch (Hann windows, 50 % overlap,
+//    within segments); (1) over windows with the references as instruments
+//    (`welch`), or H1 = S_xf S_ff^-1 (`h1`, biased in closed loop), or Hv,
+//    the total least squares solution per output (`hv`).
+//    var(e) = sum_k |e_k|^2 / (K - n_in), and (2) includes the correlation
+//    of adjacent half-overlapping Hann windows (noise DFTs correlated by
+//    (-1)^m / 6 at bin m). Windows shorter than a few decay times of the
+//    impulse response bias resonances (truncated ringing).
 //
-// Coherence: Welch writes the multiple coherence of each output with the
-// instruments (ordinary coherence for one input). The periodic methods
-// average exact spectra and have no such statistic; they write the
-// coherence that inverts Bendat & Piersol's relation
-// sigma^2 = (1 - coh) |H|^2 / (n coh) for n averages:
-// coh = |H|^2 / (|H|^2 + n sigma^2), i.e. the fraction of one period's
-// response at that entry that is not noise (0..1).
+// Coherence, for every method: coh = |H|^2 / (|H|^2 + n sigma^2), the
+// inverse of Bendat & Piersol's sigma^2 = (1 - coh) |H|^2 / (n coh), with n
+// the averages that carry the excitation (periods, Welch windows with at
+// least 1 % of the line's strongest window's reference power, sweeps): the
+// fraction of one average's response at that entry that is not noise, 0..1.
+// For stationary random excitation this is the ordinary (one input) or
+// multiple coherence; for the periodic methods, which average exact
+// spectra, and for sweeps, which cross a line in one or two Welch windows,
+// the ordinary coherence is undefined or diluted by unexcited windows.
 //
 // References: J. S. Bendat, A. G. Piersol, Random Data, 4th ed., Wiley 2010,
 // ch. 9 (random errors of H1 and coherence); R. Pintelon, J. Schoukens,
 // System Identification: a frequency domain approach, 2nd ed., Wiley 2012,
-// ch. 2 and 7 (periodic excitation, closed loop, sample variance).
+// ch. 2 and 7 (periodic excitation, closed loop, sample variance, local
+// polynomial method); A. Farina, AES preprint 5093, 2000 (sweep
+// deconvolution and gating).
 #pragma once
 
 #include <string>
@@ -58,14 +71,17 @@
 
 namespace ambdiag {
 
-// Which cross-spectral estimator Welch uses; the periodic methods always
-// solve (1).
-enum class WelchEstimator { automatic, h1, hv };
+// The estimator for chirp and random runs; the periodic methods always
+// solve (1). automatic: gated for a chirp, welch for random excitation.
+enum class NonperiodicMethod { automatic, gated, lpm, welch, h1, hv };
 
 struct FrfEstimationOptions {
-  WelchEstimator welch = WelchEstimator::automatic;
-  // Welch window length in samples (> 2, even); 0 chooses the largest power
-  // of two that gives at least 8 windows (15 with overlap), 64..65536.
+  NonperiodicMethod method = NonperiodicMethod::automatic;
+  // Welch window length in samples (even, >= 4; Welch only); 0 chooses the
+  // largest power of two, 64..65536, that gives at least 15 half-overlapping
+  // windows for random excitation, 7 for a chirp (whose lines are each
+  // excited once, so long windows that hold the ringing matter more than
+  // averages).
   long nfft = 0;
   // Lines where the input spectra of the experiments (rows scaled to unit
   // norm) have a reciprocal condition number below this are dropped (with a
@@ -78,11 +94,11 @@ struct FrfEstimationOptions {
 };
 
 struct FrfEstimate {
-  FrfData frf;                        // metadata: pump_id, run_id, speed_rpm, quantity, unit, method
-  std::string method;                 // multisine, stepsine, welch-ref, welch-h1, welch-hv
+  FrfData frf;         // metadata: pump_id, run_id, speed_rpm, quantity, unit, method, averages, warning_N
+  std::string method;  // multisine, stepsine, gated, lpm, welch-ref, welch-h1, welch-hv
   std::vector<std::string> warnings;  // what a user should know: dropped lines, segments, no sigma
-  long averages = 0;                  // periods (multisine, stepsine: per experiment, mean) or Welch windows
-  long lines_dropped = 0;
+  long averages = 0;                  // periods (per experiment, mean), sweeps or Welch windows
+  long lines_dropped = 0;             // including lines without excitation in [f_min_hz, f_max_hz]
 };
 
 // Throws InputError (naming the channel, segment or line) for a run that
