@@ -61,17 +61,11 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles) {
       gc(l, static_cast<Eigen::Index>(k)) = 1.0 / ((s - std::conj(poles[k])) * (s - std::conj(poles[k])));
     }
   }
-  Eigen::MatrixXd a(2 * L, nc), dmat(2 * L, np);
-  Eigen::VectorXd y(2 * L);
+  Eigen::MatrixXd a, dmat(2 * L, np);
+  Eigen::VectorXd y;
   const cd j(0.0, 1.0);
   for (int e = 0; e < E; ++e) {
-    for (int l = 0; l < L; ++l) {
-      const double wt = data.weight(l, e);
-      a.row(l) = wt * phi.row(l).real();
-      a.row(L + l) = wt * phi.row(l).imag();
-      y(l) = wt * data.h(l, e).real();
-      y(L + l) = wt * data.h(l, e).imag();
-    }
+    stack_weighted(data, phi, e, a, y);
     Eigen::HouseholderQR<Eigen::MatrixXd> qr(a);
     const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(2 * L, nc);
     const Eigen::VectorXd c = qr.solve(y);

@@ -59,22 +59,29 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
   return p;
 }
 
+void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y) {
+  const int L = data.lines();
+  a.resize(2 * L, phi.cols());
+  y.resize(2 * L);
+  for (int l = 0; l < L; ++l) {
+    const double wt = data.weight(l, e);
+    a.row(l) = wt * phi.row(l).real();
+    a.row(L + l) = wt * phi.row(l).imag();
+    y(l) = wt * data.h(l, e).real();
+    y(L + l) = wt * data.h(l, e).imag();
+  }
+}
+
 LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles) {
   const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
-  const int L = data.lines(), n = static_cast<int>(phi.cols());
+  const int n = static_cast<int>(phi.cols());
   LinearSolution out;
   out.residues.resize(data.entries(), static_cast<Eigen::Index>(poles.size()));
   out.direct.resize(data.entries());
-  Eigen::MatrixXd a(2 * L, n);
-  Eigen::VectorXd b(2 * L);
+  Eigen::MatrixXd a;
+  Eigen::VectorXd b;
   for (int e = 0; e < data.entries(); ++e) {
-    for (int l = 0; l < L; ++l) {
-      const double wt = data.weight(l, e);
-      a.row(l) = wt * phi.row(l).real();
-      a.row(L + l) = wt * phi.row(l).imag();
-      b(l) = wt * data.h(l, e).real();
-      b(L + l) = wt * data.h(l, e).imag();
-    }
+    stack_weighted(data, phi, e, a, b);
     const Eigen::VectorXd c = a.householderQr().solve(b);
     out.cost += (a * c - b).squaredNorm();
     const auto r = residues_from_coefficients(poles, c);
