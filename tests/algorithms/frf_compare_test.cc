@@ -32,8 +32,12 @@ TEST(FrfCompare, WrongModelIsFarAboveTheFloor) {
   PlantModel p = pump();
   for (auto& [name, m] : p.materials) m.e_pa *= 0.9;
   const FrfComparison c = compare_frf(model_frf_like(p, meas), meas);
+  const FrfComparison right = compare_frf(model_frf_like(pump(), meas), meas);
+  // E 10 % low moves the bending modes 5 %: far beyond noise in chi2, and
+  // the nrmse (dominated by the bearing-controlled rigid-body modes) at
+  // least doubles.
   EXPECT_GT(c.chi2 / c.chi2_lines, 10.0);
-  EXPECT_GT(c.nrmse, 0.05);
+  EXPECT_GT(c.nrmse, 2.0 * right.nrmse);
 }
 
 TEST(FrfCompare, NrmseFollowsTheCliDefinition) {
