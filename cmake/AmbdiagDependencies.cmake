@@ -22,3 +22,9 @@ endif()
 if(AMBDIAG_BUILD_BENCH AND NOT AMBDIAG_FUZZ_ONLY)
   find_package(benchmark REQUIRED CONFIG)
 endif()
+
+# Streaming (issue 5): Cyclone DDS (C API; idlc_generate emits C), SQLite,
+# cpp-httplib (compiled library with only a pkg-config file).
+if(NOT AMBDIAG_FUZZ_ONLY)
+  find_package(CycloneDDS REQUIRED CONFIG)
+endif()
