@@ -1,6 +1,6 @@
 // `ambdiag serve --db FILE --http-port N [--domain D]`: the server. DDS
 // ingest (server/ingest.h) into the historian in FILE, REST read side on
-// port N; stops cleanly on SIGINT/SIGTERM (ingest drains, the database is
+// port N (0: any free port, printed on stderr); stops cleanly on SIGINT/SIGTERM (ingest drains, the database is
 // closed after its last commit).
 #include <atomic>
 #include <chrono>
@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "ambdiag/server/ingest.h"
+#include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
@@ -50,8 +51,14 @@ int run_serve(const std::vector<std::string>& argv) {
 
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   server::Ingest ingest(historian, opt);
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST port %d\n", db->c_str(),
-               opt.domain, opt.partitions.front().c_str(), http_port);
+  server::RestOptions rest_opt;
+  rest_opt.db_path = *db;
+  rest_opt.port = http_port;
+  rest_opt.health_extra = [&ingest] { return nlohmann::json{{"ingest", ingest.health()}}; };
+  server::RestServer rest(rest_opt);
+  const int bound_port = rest.start();
+  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d\n", db->c_str(),
+               opt.domain, opt.partitions.front().c_str(), bound_port);
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
   // Progress on stderr every 5 s while something changes.
@@ -73,6 +80,7 @@ int run_serve(const std::vector<std::string>& argv) {
   }
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
+  rest.stop();
   std::fprintf(stderr, "ambdiag serve: stopped (%lld blocks committed)\n",
                static_cast<long long>(ingest.counters().blocks_stored.load()));
   return kExitOk;

@@ -131,10 +131,12 @@ void set_pragmas(Db& db, bool read_only) {
   db.exec(
       "PRAGMA synchronous = NORMAL;"  // WAL: durable at checkpoint, consistent always
       "PRAGMA temp_store = MEMORY;"
-      "PRAGMA cache_size = -65536;"     // KiB: 64 MiB
       "PRAGMA secure_delete = OFF;"     // Debian builds it ON: no zeroing of freed pages
       "PRAGMA foreign_keys = ON;",
       "pragmas");
+  // KiB. The writer's 64 MiB holds a batch of chunks and the indexes' hot
+  // pages; readers (one per REST worker) stream blobs through and need less.
+  db.exec(read_only ? "PRAGMA cache_size = -8192" : "PRAGMA cache_size = -65536", "pragmas");
   if (read_only) db.exec("PRAGMA query_only = ON", "pragmas");
 }
 
