@@ -32,7 +32,7 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 }
 
 int run_serve(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--db", "--http-port", "--domain", "--partition", "--agent-timeout"}, {"--quiet"});
+  const Args args(argv, {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms"}, {"--quiet"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -45,6 +45,7 @@ int run_serve(const std::vector<std::string>& argv) {
       static_cast<long>(1000.0 * args.number("--agent-timeout").value_or(10.0)));
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
   opt.verbose = !args.flag("--quiet");
+  opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
 
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
@@ -62,7 +63,7 @@ int run_serve(const std::vector<std::string>& argv) {
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
   // Progress on stderr every 5 s while something changes.
-  int64_t last_blocks = -1, last_rejected = -1;
+  int64_t last_blocks = 0, last_rejected = 0;
   auto next_report = std::chrono::steady_clock::now();
   while (!g_stop) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -97,6 +98,7 @@ std::vector<Command> serve_commands() {
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
            "the REST read side on port N. A run whose agent falls silent for S seconds\n"
            "(default 10) before its end is marked incomplete. SIGINT/SIGTERM stop it cleanly.\n"
+           "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "Set CYCLONEDDS_URI to a Cyclone config (deploy/cyclonedds/local.xml on one machine).\n",
            run_serve}};
 }

@@ -12,12 +12,14 @@
 #include <exception>
 #include <map>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/edge_agent/block_source.h"
 #include "ambdiag/edge_agent/config.h"
+#include "ambdiag/edge_agent/simulate.h"
 #include "ambdiag/edge_agent/spool.h"
 #include "ambdiag/edge_agent/streamer.h"
 #include "ambdiag/proto/dds.h"
@@ -51,7 +53,6 @@ const char* kUsage =
     "  --block-frames N     frames per sample block (default 512)\n"
     "  --timeout S          give up after S seconds without progress (default 60)\n"
     "  --runs N             simulate: number of identification runs (default 1)\n"
-    "  --duration S         simulate: seconds per run (default 8)\n"
     "  --seed N             simulate: noise seed (default 1)\n"
     "exit codes: 0 committed, 1 not committed (timeout, incomplete, stopped), 2 usage, 3 bad input\n";
 
@@ -70,7 +71,7 @@ struct Cli {
 Cli parse(int argc, char** argv) {
   static const std::vector<std::string> kOptions = {"--config", "--domain", "--partition", "--pump", "--spool-dir",
                                                     "--spool-limit", "--block-frames", "--timeout", "--model",
-                                                    "--fault", "--runs", "--duration", "--seed"};
+                                                    "--runs", "--seed"};
   Cli c;
   if (argc < 2) throw UsageError("missing command (replay or simulate)");
   c.command = argv[1];
@@ -79,6 +80,9 @@ Cli parse(int argc, char** argv) {
     const std::string a = argv[i];
     if (a == "--fast") {
       c.flags[a] = true;
+    } else if (a == "--fault") {  // --fault NAME [NAME ...]
+      if (i + 1 >= argc || std::string(argv[i + 1]).starts_with("--")) throw UsageError("--fault needs a name");
+      while (i + 1 < argc && !std::string(argv[i + 1]).starts_with("--")) c.opts[a].push_back(argv[++i]);
     } else if (std::find(kOptions.begin(), kOptions.end(), a) != kOptions.end()) {
       if (i + 1 >= argc) throw UsageError(a + " needs a value");
       c.opts[a].push_back(argv[++i]);
@@ -148,7 +152,31 @@ int run(const Cli& c) {
     stream::AgentEndpoints ep(cfg.domain, cfg.partition);
     return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
   }
-  throw UsageError("simulate is not built yet");
+  // simulate: identification runs on the schedule (the config's
+  // identification_interval_s between runs).
+  if (!c.positional.empty()) throw UsageError("simulate takes no positional arguments");
+  if (cfg.model.empty()) throw UsageError("simulate needs --model PLANT.json (or \"model\" in the config)");
+  if (cfg.pump_id.empty()) throw UsageError("simulate needs --pump ID (or \"pump_id\" in the config)");
+  agent::SimulationOptions sim;
+  sim.pump_id = cfg.pump_id;
+  sim.faults = c.opts.count("--fault") ? c.opts.at("--fault") : std::vector<std::string>{};
+  if (c.has("--seed")) sim.seed = static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40));
+  const long long runs = c.has("--runs") ? integer_option(c, "--runs", 1, 1000000) : 1;
+  agent::PumpSimulator simulator(cfg.model, sim);
+  stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+  bool all_ok = true;
+  for (long long i = 0; i < runs && !g_stop; ++i) {
+    if (i > 0) {
+      const auto until =
+          std::chrono::steady_clock::now() + std::chrono::duration<double>(cfg.identification_interval_s);
+      while (!g_stop && std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (g_stop) break;
+    }
+    std::fprintf(stderr, "ambdiag-agent: simulating identification run %lld of %lld\n", i + 1, runs);
+    all_ok = stream_one(ep, simulator.identification_run(), cfg, opt) && all_ok;
+  }
+  return all_ok ? 0 : 1;
 }
 
 }  // namespace

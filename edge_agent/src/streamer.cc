@@ -51,6 +51,7 @@ class RunStream {
       }
       ws_.wait(next_wait(now));
     }
+    release_instances();
     result_.n_blocks = produced_;
     result_.total_frames = src_.frames_produced();
     result_.checksum = checksum_;
@@ -69,6 +70,27 @@ class RunStream {
     h.sample_rate_hz = src_.run().sample_rate_hz;
     h.frames_per_block = src_.frames_per_block();
     ep_.header.write(h);
+  }
+
+  // The run's header and end stay in the transient-local writers (for a
+  // server that restarts mid-run) until the run is over: then release them,
+  // so a long-running agent does not replay finished runs to new servers.
+  void release_instances() {
+    try {
+      char empty[] = "";
+      ambdiag_stream_RunHeader h{};
+      h.run_id = const_cast<char*>(run_id_.c_str());
+      h.pump_id = h.header_json = empty;
+      ep_.header.unregister(h);
+      if (end_sent_) {
+        ambdiag_stream_RunEnd e{};
+        e.run_id = const_cast<char*>(run_id_.c_str());
+        e.pump_id = e.reason = empty;
+        ep_.end.unregister(e);
+      }
+    } catch (const dds::DdsError& e) {
+      std::fprintf(stderr, "ambdiag-agent: releasing run %s: %s\n", run_id_.c_str(), e.what());
+    }
   }
 
   void heartbeat(Clock::time_point now, std::optional<ambdiag_stream_AgentState> forced = std::nullopt) {

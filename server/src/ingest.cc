@@ -6,6 +6,7 @@
 #include <cstring>
 #include <optional>
 #include <span>
+#include <thread>
 #include <unordered_map>
 
 #include "ambdiag/core/checksum.h"
@@ -227,6 +228,7 @@ struct Ingest::Impl {
       counters.blocks_duplicate += r.duplicates;
       if (r.stored > 0) counters.bytes_stored += static_cast<int64_t>(bytes);
       ++counters.commits;
+      if (opt.commit_delay.count() > 0) std::this_thread::sleep_for(opt.commit_delay);
     };
     try {
       size_t bytes = 0;

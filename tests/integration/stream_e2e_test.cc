@@ -2,6 +2,10 @@
 // recording into `ambdiag serve`; the historian must hold it byte for byte.
 #include <signal.h>
 
+#include <httplib.h>
+
+#include "ambdiag/server/rest_server.h"
+
 #include "stream_fixture.h"
 
 namespace ambdiag::testing {
@@ -11,9 +15,23 @@ TEST_F(StreamTest, ReplayedRunIsStoredByteForByteAndVerified) {
   const fs::path run_dir = data_file("reference_pump/run_ref_1");
   const RunRecording rec = read_run(run_dir.string());
   auto server = start_server();
+  const int port = rest_port(*server);
+  ASSERT_GT(port, 0) << server->log();
   auto agent = start_agent(run_dir, {"--fast", "--timeout", "30"});
   const int rc = agent->wait(60s);
   ASSERT_EQ(rc, 0) << agent->log() << "\n--- server ---\n" << server->log();
+
+  // Read back over REST while the server runs: the recording's bytes exactly.
+  const std::string expected = read_file_bytes((run_dir / "samples.f32").string());
+  httplib::Client http("127.0.0.1", port);
+  const auto res = http.Get("/api/v1/runs/" + server::url_encode_segment(rec.run_id) + "/samples.f32");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_TRUE(res->body == expected) << "REST samples differ from the recording (" << res->body.size() << " vs "
+                                     << expected.size() << " bytes)";
+  const auto run = http.Get("/api/v1/runs/" + server::url_encode_segment(rec.run_id));
+  ASSERT_TRUE(run);
+  EXPECT_EQ(nlohmann::json::parse(run->body).at("status"), "complete") << run->body;
   server->signal(SIGTERM);
   ASSERT_EQ(server->wait(15s), 0) << server->log();
 
@@ -21,7 +39,7 @@ TEST_F(StreamTest, ReplayedRunIsStoredByteForByteAndVerified) {
   ASSERT_TRUE(info);
   EXPECT_EQ(info->status, storage::RunStatus::complete) << info->status_reason;
   EXPECT_EQ(info->received_frames, rec.frame_count());
-  EXPECT_EQ(stored_samples(rec.run_id), read_file_bytes((run_dir / "samples.f32").string()));
+  EXPECT_TRUE(stored_samples(rec.run_id) == expected);
 }
 
 TEST_F(StreamTest, AgentWithoutServerTimesOutWithClearMessage) {

@@ -48,6 +48,16 @@ class StreamTest : public ::testing::Test {
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, env, (dir / ("agent" + std::to_string(log_n++) + ".log")).string());
   }
+  // The REST port a server printed on stderr ("REST on port N"), 0 if not yet.
+  static int rest_port(Process& server, std::chrono::milliseconds timeout = 10s) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      const std::string log = server.log();
+      if (const auto at = log.find("REST on port "); at != std::string::npos) return std::stoi(log.substr(at + 13));
+      std::this_thread::sleep_for(50ms);
+    }
+    return 0;
+  }
   // The run as the historian holds it (a reader beside the running server).
   std::optional<storage::RunInfo> find_run(const std::string& run_id) {
     if (!fs::exists(db)) return std::nullopt;

@@ -34,6 +34,8 @@ struct IngestOptions {
   std::chrono::milliseconds agent_timeout{10000};
   size_t max_batch_blocks = 256;  // blocks per historian transaction
   bool verbose = true;            // log runs and rejections on stderr
+  // Added to every commit: emulates a slow disk (bench_stream's memory check).
+  std::chrono::milliseconds commit_delay{0};
 };
 
 // Counters, readable from any thread (REST health).
