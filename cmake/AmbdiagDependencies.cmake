@@ -14,6 +14,11 @@ if(NOT AMBDIAG_FUZZ_ONLY)
     target_link_libraries(ambdiag_suitesparse INTERFACE ${AMBDIAG_SS_${lib}})
   endforeach()
   add_library(SuiteSparse::all ALIAS ambdiag_suitesparse)
+
+  # Historian and REST (issue 5).
+  find_package(SQLite3 REQUIRED)
+  find_package(PkgConfig REQUIRED)
+  pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 endif()
 
 if(AMBDIAG_BUILD_TESTS OR AMBDIAG_FUZZ)
@@ -21,4 +26,9 @@ if(AMBDIAG_BUILD_TESTS OR AMBDIAG_FUZZ)
 endif()
 if(AMBDIAG_BUILD_BENCH AND NOT AMBDIAG_FUZZ_ONLY)
   find_package(benchmark REQUIRED CONFIG)
+endif()
+
+# Streaming (issue 5): Cyclone DDS (C API only on Debian; idlc_generate emits C).
+if(NOT AMBDIAG_FUZZ_ONLY)
+  find_package(CycloneDDS REQUIRED CONFIG)
 endif()

@@ -1,0 +1,280 @@
+// Streaming benchmark (docs/benchmarks.md, "Streaming (issue 5)"), in one run:
+//  1. end to end: K `ambdiag-agent replay --fast` processes into one
+//     `ambdiag serve` (real processes, loopback DDS); bytes of samples per
+//     second from the agents' start until every run is committed and verified;
+//  2. the DDS ceiling: Cyclone's `ddsperf` pub -> sub, same payload size;
+//  3. the storage ceiling: Historian::put_chunks of the same chunks in
+//     batches of 256, one transaction each (no DDS);
+//  4. pumps one server carries at 8 kHz x 15 channels float32 (480 kB/s each):
+//     P paced agents streaming live at once, each must finish in real time;
+//  5. memory with a slow disk: server peak RSS while each commit is delayed.
+// Usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P]
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ambdiag/core/checksum.h"
+#include "ambdiag/core/run_recording.h"
+#include "ambdiag/storage/historian.h"
+#include "process.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ambdiag::testing::Process;
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+constexpr uint32_t kBlockFrames = 512;
+constexpr int kChannels = 15;
+constexpr double kRateHz = 8000.0;
+
+double secs(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// CPU seconds (user + sys) of reaped children so far.
+double children_cpu_s() {
+  rusage ru{};
+  getrusage(RUSAGE_CHILDREN, &ru);
+  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+// Peak resident memory of a running process (VmHWM), MB.
+double peak_rss_mb(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+
+// An 8 kHz x 15-channel monitoring run of `seconds`, seeded noise.
+ambdiag::RunRecording make_run(const std::string& pump, double seconds, unsigned seed) {
+  ambdiag::RunRecording r;
+  r.pump_id = pump;
+  r.run_id = pump + "/bench-" + std::to_string(seed);
+  r.kind = "monitoring";
+  r.started_at = "2026-11-22T00:00:00Z";
+  r.speed_rpm = 2950;
+  r.sample_rate_hz = kRateHz;
+  for (int c = 0; c < kChannels; ++c) {
+    ambdiag::Channel ch;
+    ch.name = "x" + std::to_string(c);
+    ch.role = ambdiag::ChannelRole::displacement;
+    ch.role_text = "displacement";
+    ch.unit = "m";
+    r.channels.push_back(ch);
+  }
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> n(0.0f, 1e-5f);
+  r.samples.resize(static_cast<size_t>(seconds * kRateHz) * kChannels);
+  for (auto& v : r.samples) v = n(rng);
+  return r;
+}
+
+struct Env {
+  fs::path dir;
+  int domain;
+  std::map<std::string, std::string> env;
+  int n = 0;
+  std::unique_ptr<Process> server(const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> a = {AMBDIAG_CLI, "serve", "--db", (dir / "bench.db").string(), "--http-port", "0",
+                                  "--domain", std::to_string(domain), "--quiet"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return std::make_unique<Process>(a, env, (dir / ("server" + std::to_string(n++) + ".log")).string());
+  }
+  std::unique_ptr<Process> agent(const fs::path& run, bool fast) {
+    std::vector<std::string> a = {AMBDIAG_AGENT, "replay", run.string(), "--domain", std::to_string(domain),
+                                  "--spool-dir", (dir / ("spool" + std::to_string(n))).string(), "--timeout", "60"};
+    if (fast) a.push_back("--fast");
+    return std::make_unique<Process>(a, env, (dir / ("agent" + std::to_string(n++) + ".log")).string());
+  }
+};
+
+struct E2e {
+  double mb_per_s = 0, wall_s = 0, cpu_s = 0, server_rss_mb = 0;
+  int failed = 0;
+};
+
+// K agents replay their runs into one server as fast as possible.
+E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fast,
+               const std::vector<std::string>& server_extra = {}) {
+  fs::remove(e.dir / "bench.db");
+  fs::remove(e.dir / "bench.db-wal");
+  fs::remove(e.dir / "bench.db-shm");
+  auto server = e.server(server_extra);
+  std::this_thread::sleep_for(1s);  // server up and discovered
+  const double cpu0 = children_cpu_s();
+  const auto t0 = Clock::now();
+  std::vector<std::unique_ptr<Process>> agents;
+  for (const auto& r : runs) agents.push_back(e.agent(r, fast));
+  E2e out;
+  double rss = 0;
+  for (auto& a : agents) {
+    int rc;
+    while ((rc = a->wait(200ms)) == -1000) rss = std::max(rss, peak_rss_mb(server->pid()));
+    if (rc != 0) {
+      ++out.failed;
+      std::fprintf(stderr, "agent failed (%d):\n%s\n", rc, a->log().c_str());
+    }
+  }
+  out.wall_s = secs(Clock::now() - t0);
+  out.server_rss_mb = std::max(rss, peak_rss_mb(server->pid()));
+  server->signal(SIGTERM);
+  server->wait(30s);
+  out.cpu_s = children_cpu_s() - cpu0;
+  out.mb_per_s = bytes / out.wall_s / 1e6;
+  return out;
+}
+
+// ddsperf pub -> sub for `seconds` with payload `size`; MB/s of the sub.
+double ddsperf(Env& e, size_t size, int seconds) {
+  auto sub = std::make_unique<Process>(
+      std::vector<std::string>{"/usr/bin/ddsperf", "-i", std::to_string(e.domain + 1), "-D", std::to_string(seconds + 2), "sub"},
+      e.env, (e.dir / "ddsperf_sub.log").string());
+  std::this_thread::sleep_for(500ms);
+  auto pub = std::make_unique<Process>(
+      std::vector<std::string>{"/usr/bin/ddsperf", "-i", std::to_string(e.domain + 1), "-D", std::to_string(seconds), "pub",
+                               "size", std::to_string(size)},
+      e.env, (e.dir / "ddsperf_pub.log").string());
+  pub->wait(std::chrono::seconds(seconds + 10));
+  sub->wait(std::chrono::seconds(seconds + 10));
+  // Lines like "... size 30720 total 123 lost 0 delta 45 rate 32.10 kS/s 7890.12 Mb/s (...)"
+  const std::regex re(R"(([0-9.]+) Mb/s)");
+  std::vector<double> rates;
+  std::istringstream in(sub->log());
+  std::string line;
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (std::regex_search(line, m, re)) rates.push_back(std::stod(m[1]));
+  }
+  if (rates.size() > 2) rates = std::vector<double>(rates.begin() + 1, rates.end() - 1);  // drop ramp-up/down
+  double sum = 0;
+  for (double r : rates) sum += r;
+  return rates.empty() ? 0 : sum / static_cast<double>(rates.size()) / 8.0;  // Mbit/s -> MB/s
+}
+
+// Historian::put_chunks of the runs' chunks, 256 per transaction.
+double storage_ceiling(const fs::path& dir, const std::vector<ambdiag::RunRecording>& runs, double* cpu_s) {
+  const fs::path db = dir / "ceiling.db";
+  fs::remove(db);
+  auto h = ambdiag::storage::Historian::open(db.string());
+  double bytes = 0;
+  rusage r0{}, r1{};
+  getrusage(RUSAGE_SELF, &r0);
+  const auto t0 = Clock::now();
+  for (const auto& run : runs) {
+    h.begin_run(ambdiag::storage::run_header_from_json(ambdiag::run_to_json(run).dump()));
+    const auto* p = reinterpret_cast<const uint8_t*>(run.samples.data());
+    const int64_t frames = run.frame_count();
+    std::vector<ambdiag::storage::Chunk> batch;
+    int64_t seq = 0;
+    for (int64_t f = 0; f < frames; f += kBlockFrames) {
+      const int64_t nf = std::min<int64_t>(kBlockFrames, frames - f);
+      batch.push_back({seq++, f, nf, {p + f * kChannels * 4, static_cast<size_t>(nf * kChannels * 4)}});
+      bytes += static_cast<double>(nf * kChannels * 4);
+      if (batch.size() == 256 || f + nf >= frames) {
+        h.put_chunks(run.run_id, batch);
+        batch.clear();
+      }
+    }
+  }
+  const double wall = secs(Clock::now() - t0);
+  getrusage(RUSAGE_SELF, &r1);
+  *cpu_s = static_cast<double>(r1.ru_utime.tv_sec - r0.ru_utime.tv_sec + r1.ru_stime.tv_sec - r0.ru_stime.tv_sec) +
+           1e-6 * static_cast<double>(r1.ru_utime.tv_usec - r0.ru_utime.tv_usec + r1.ru_stime.tv_usec - r0.ru_stime.tv_usec);
+  return bytes / wall / 1e6;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double seconds = 30;  // per run: 30 s x 8 kHz x 15 ch x 4 B = 14.4 MB
+  int agents = 4, pumps = 16;
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") quick = true;
+    else if (a == "--seconds" && i + 1 < argc) seconds = std::atof(argv[++i]);
+    else if (a == "--agents" && i + 1 < argc) agents = std::atoi(argv[++i]);
+    else if (a == "--pumps" && i + 1 < argc) pumps = std::atoi(argv[++i]);
+    else {
+      std::fprintf(stderr, "usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P]\n");
+      return 2;
+    }
+  }
+  if (quick) seconds = 5, agents = 2, pumps = 4;
+
+  Env e;
+  e.dir = fs::temp_directory_path() / ("ambdiag_bench_stream_" + std::to_string(getpid()));
+  fs::create_directories(e.dir);
+  e.domain = 180 + static_cast<int>(getpid() % 40);
+  e.env = {{"CYCLONEDDS_URI", "file://" AMBDIAG_CYCLONE_LOCAL_XML}};
+
+  std::vector<ambdiag::RunRecording> runs;
+  std::vector<fs::path> run_dirs;
+  double bytes = 0;
+  for (int k = 0; k < agents; ++k) {
+    runs.push_back(make_run("B-" + std::to_string(k), seconds, static_cast<unsigned>(k + 1)));
+    run_dirs.push_back(e.dir / ("run" + std::to_string(k)));
+    ambdiag::write_run(run_dirs.back().string(), runs.back());
+    bytes += static_cast<double>(runs.back().samples.size() * 4);
+  }
+  std::printf("runs: %d x %.0f s at 8 kHz x 15 ch float32 = %.1f MB total, blocks of %u frames (%u B)\n", agents,
+              seconds, bytes / 1e6, kBlockFrames, kBlockFrames * kChannels * 4);
+
+  const E2e fast = end_to_end(e, run_dirs, bytes, true);
+  std::printf("end to end (%d agents --fast -> serve -> committed, verified): %.1f MB/s, wall %.2f s, CPU %.2f s "
+              "(user+sys, all processes), server peak RSS %.0f MB, failed %d\n",
+              agents, fast.mb_per_s, fast.wall_s, fast.cpu_s, fast.server_rss_mb, fast.failed);
+
+  const double dds = ddsperf(e, kBlockFrames * kChannels * 4, quick ? 4 : 8);
+  std::printf("ceiling ddsperf pub->sub, size %u: %.1f MB/s\n", kBlockFrames * kChannels * 4, dds);
+
+  double st_cpu = 0;
+  const double st = storage_ceiling(e.dir, runs, &st_cpu);
+  std::printf("ceiling Historian::put_chunks, 256 chunks per transaction: %.1f MB/s (CPU %.2f s)\n", st, st_cpu);
+  const double lower = std::min(dds, st);
+  std::printf("end to end / lower ceiling: %.0f %%\n", 100.0 * fast.mb_per_s / lower);
+  std::printf("pumps at 8 kHz x 15 ch (0.48 MB/s each) by end-to-end throughput: %.0f\n", fast.mb_per_s / 0.48);
+
+  // Live pumps: P paced agents at once must finish in about real time.
+  {
+    std::vector<fs::path> live;
+    double live_bytes = 0;
+    const double live_s = quick ? 3 : 10;
+    for (int k = 0; k < pumps; ++k) {
+      const auto r = make_run("L-" + std::to_string(k), live_s, static_cast<unsigned>(100 + k));
+      live.push_back(e.dir / ("live" + std::to_string(k)));
+      ambdiag::write_run(live.back().string(), r);
+      live_bytes += static_cast<double>(r.samples.size() * 4);
+    }
+    const E2e paced = end_to_end(e, live, live_bytes, false);
+    std::printf("live: %d pumps paced at 8 kHz x 15 ch for %.0f s: all committed after %.2f s wall (real time %.0f s), "
+                "CPU %.2f s (agents + server), server peak RSS %.0f MB, failed %d\n",
+                pumps, live_s, paced.wall_s, live_s, paced.cpu_s, paced.server_rss_mb, paced.failed);
+  }
+
+  // Slow disk: every historian commit delayed 50 ms; memory must stay bounded.
+  {
+    const E2e slow = end_to_end(e, run_dirs, bytes, true, {"--bench-commit-delay-ms", "50"});
+    std::printf("slow disk (+50 ms per commit): %.1f MB/s, server peak RSS %.0f MB (fast disk: %.0f MB), failed %d\n",
+                slow.mb_per_s, slow.server_rss_mb, fast.server_rss_mb, slow.failed);
+  }
+  fs::remove_all(e.dir);
+  return 0;
+}

@@ -1,0 +1,48 @@
+// Streams one run to the server and waits until every block is committed.
+//
+// Protocol (docs/streaming.md): header (transient-local), blocks with at
+// most `window_blocks` unacknowledged in flight, the server acknowledges
+// committed ranges; once every block is acknowledged the agent sends the run
+// end (count and checksum) and waits for the server's verdict (complete or
+// incomplete). Blocks stay in the Spool until acknowledged; when no server
+// is matched the source keeps producing into the spool (disk once memory is
+// used up) and the backlog is re-sent from the first unacknowledged block
+// when a server appears or acks stall. The server stores (run_id, seq)
+// idempotently, so re-sending never duplicates.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "ambdiag/edge_agent/block_source.h"
+#include "ambdiag/edge_agent/spool.h"
+#include "ambdiag/proto/stream.h"
+
+namespace ambdiag::agent {
+
+struct StreamOptions {
+  bool paced = true;                                 // at the recording's sample rate
+  size_t window_blocks = 128;                        // sent, not yet acknowledged
+  std::chrono::milliseconds retransmit_after{2000};  // no ack progress -> resend backlog
+  std::chrono::milliseconds heartbeat{250};
+  std::chrono::milliseconds timeout{60000};          // no progress at all -> give up
+  std::function<bool()> stop_requested;              // e.g. SIGINT; the run is ended as aborted
+};
+
+struct StreamResult {
+  bool complete = false;  // the server verified count and checksum
+  std::string message;    // the server's verdict or why the agent gave up
+  int64_t n_blocks = 0;
+  int64_t total_frames = 0;
+  uint64_t checksum = 0;
+  int64_t blocks_sent = 0;  // including re-sent ones
+  int64_t resends = 0;      // times the backlog was re-sent
+  uint64_t max_spool_disk_bytes = 0;
+};
+
+StreamResult stream_run(stream::AgentEndpoints& ep, RecordingSource& source, Spool& spool, const std::string& pump_id,
+                        const StreamOptions& opt);
+
+}  // namespace ambdiag::agent

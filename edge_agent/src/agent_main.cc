@@ -1,0 +1,204 @@
+// ambdiag-agent: the edge agent (../shared/specs/cli.md).
+//   ambdiag-agent replay RUN_DIR [--fast] [--domain D] [options]
+// Exit codes: 0 every sample committed and verified by the server, 1 not
+// (timeout, server verdict incomplete, stopped), 2 usage error, 3 bad input.
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <exception>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/core/run_recording.h"
+#include "ambdiag/edge_agent/block_source.h"
+#include "ambdiag/edge_agent/config.h"
+#include "ambdiag/edge_agent/simulate.h"
+#include "ambdiag/edge_agent/spool.h"
+#include "ambdiag/edge_agent/streamer.h"
+#include "ambdiag/proto/dds.h"
+
+namespace {
+
+using namespace ambdiag;
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop = true; }
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+const char* kUsage =
+    "usage: ambdiag-agent replay RUN_DIR [--fast] [--domain D] [options]\n"
+    "       ambdiag-agent simulate --model PLANT.json --pump ID [--fault NAME ...] [--domain D] [options]\n"
+    "\n"
+    "Streams runs over Cyclone DDS to `ambdiag serve`; exits 0 once every sample is\n"
+    "acknowledged as committed and the server verified the run's count and checksum.\n"
+    "\n"
+    "options:\n"
+    "  --config FILE        agent configuration (JSON; see edge_agent/README.md)\n"
+    "  --fast               replay as fast as possible (default: paced at the sample rate)\n"
+    "  --domain D           DDS domain id (default 0 or the config's)\n"
+    "  --partition NAME     DDS partition, one per site (default \"site\")\n"
+    "  --pump ID            pump id (default: the recording's)\n"
+    "  --spool-dir DIR      store-and-forward folder (default ./ambdiag-spool)\n"
+    "  --spool-limit BYTES  bound on the spool's disk use (default 1 GiB)\n"
+    "  --block-frames N     frames per sample block (default 512)\n"
+    "  --timeout S          give up after S seconds without progress (default 60)\n"
+    "  --runs N             simulate: number of identification runs (default 1)\n"
+    "  --seed N             simulate: noise seed (default 1)\n"
+    "exit codes: 0 committed, 1 not committed (timeout, incomplete, stopped), 2 usage, 3 bad input\n";
+
+struct Cli {
+  std::string command;
+  std::vector<std::string> positional;
+  std::map<std::string, std::vector<std::string>> opts;
+  std::map<std::string, bool> flags;
+  std::string opt(const std::string& k, const std::string& def = "") const {
+    auto it = opts.find(k);
+    return it == opts.end() ? def : it->second.back();
+  }
+  bool has(const std::string& k) const { return opts.count(k) > 0; }
+};
+
+Cli parse(int argc, char** argv) {
+  static const std::vector<std::string> kOptions = {"--config", "--domain", "--partition", "--pump", "--spool-dir",
+                                                    "--spool-limit", "--block-frames", "--timeout", "--model",
+                                                    "--runs", "--seed"};
+  Cli c;
+  if (argc < 2) throw UsageError("missing command (replay or simulate)");
+  c.command = argv[1];
+  if (c.command != "replay" && c.command != "simulate") throw UsageError("unknown command '" + c.command + "'");
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--fast") {
+      c.flags[a] = true;
+    } else if (a == "--fault") {  // --fault NAME [NAME ...]
+      if (i + 1 >= argc || std::string(argv[i + 1]).starts_with("--")) throw UsageError("--fault needs a name");
+      while (i + 1 < argc && !std::string(argv[i + 1]).starts_with("--")) c.opts[a].push_back(argv[++i]);
+    } else if (std::find(kOptions.begin(), kOptions.end(), a) != kOptions.end()) {
+      if (i + 1 >= argc) throw UsageError(a + " needs a value");
+      c.opts[a].push_back(argv[++i]);
+    } else if (a.starts_with("--")) {
+      throw UsageError("unknown option " + a);
+    } else {
+      c.positional.push_back(a);
+    }
+  }
+  return c;
+}
+
+long long integer_option(const Cli& c, const std::string& k, long long lo, long long hi) {
+  const std::string v = c.opt(k);
+  char* end = nullptr;
+  errno = 0;
+  const long long x = std::strtoll(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || errno != 0 || x < lo || x > hi)
+    throw UsageError(k + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got '" + v + "'");
+  return x;
+}
+
+agent::AgentConfig config_from(const Cli& c) {
+  agent::AgentConfig cfg = c.has("--config") ? agent::load_agent_config(c.opt("--config")) : agent::AgentConfig{};
+  if (c.has("--domain")) cfg.domain = static_cast<int>(integer_option(c, "--domain", 0, 232));
+  if (c.has("--partition")) cfg.partition = c.opt("--partition");
+  if (c.has("--pump")) cfg.pump_id = c.opt("--pump");
+  if (c.has("--spool-dir")) cfg.spool_dir = c.opt("--spool-dir");
+  if (c.has("--spool-limit")) cfg.spool_limit_bytes = static_cast<uint64_t>(integer_option(c, "--spool-limit", 0, 1ll << 50));
+  if (c.has("--block-frames")) cfg.block_frames = static_cast<uint32_t>(integer_option(c, "--block-frames", 1, 65536));
+  if (c.has("--model")) cfg.model = c.opt("--model");
+  validate(cfg, "command line");
+  return cfg;
+}
+
+// Streams one run; returns true if the server verified it complete.
+bool stream_one(stream::AgentEndpoints& ep, RunRecording run, const agent::AgentConfig& cfg,
+                const agent::StreamOptions& opt) {
+  const std::string pump = cfg.pump_id.empty() ? run.pump_id : cfg.pump_id;
+  const std::string run_id = run.run_id;
+  std::fprintf(stderr, "ambdiag-agent: run %s of pump %s: %lld frames x %zu channels at %g Hz, %s\n", run_id.c_str(),
+               pump.c_str(), static_cast<long long>(run.frame_count()), run.channels.size(), run.sample_rate_hz,
+               opt.paced ? "paced" : "as fast as possible");
+  agent::RecordingSource src(std::move(run), cfg.block_frames);
+  agent::Spool spool(cfg.spool_dir, run_id, cfg.spool_limit_bytes, cfg.memory_blocks);
+  const agent::StreamResult r = agent::stream_run(ep, src, spool, pump, opt);
+  std::fprintf(stderr,
+               "ambdiag-agent: run %s: %s: %s (%lld blocks, %lld frames, checksum %016llx, %lld sent, %lld resends, "
+               "spool peak %llu bytes)\n",
+               run_id.c_str(), r.complete ? "committed" : "NOT committed", r.message.c_str(),
+               static_cast<long long>(r.n_blocks), static_cast<long long>(r.total_frames),
+               static_cast<unsigned long long>(r.checksum), static_cast<long long>(r.blocks_sent),
+               static_cast<long long>(r.resends), static_cast<unsigned long long>(r.max_spool_disk_bytes));
+  return r.complete;
+}
+
+int run(const Cli& c) {
+  const agent::AgentConfig cfg = config_from(c);
+  agent::StreamOptions opt;
+  opt.paced = !c.flags.count("--fast");
+  if (c.has("--timeout")) opt.timeout = std::chrono::seconds(integer_option(c, "--timeout", 1, 86400));
+  opt.stop_requested = [] { return g_stop.load(); };
+
+  if (c.command == "replay") {
+    if (c.positional.size() != 1) throw UsageError("replay needs exactly one RUN_DIR");
+    RunRecording run = read_run(c.positional[0]);
+    stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+    return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
+  }
+  // simulate: identification runs on the schedule (the config's
+  // identification_interval_s between runs).
+  if (!c.positional.empty()) throw UsageError("simulate takes no positional arguments");
+  if (cfg.model.empty()) throw UsageError("simulate needs --model PLANT.json (or \"model\" in the config)");
+  if (cfg.pump_id.empty()) throw UsageError("simulate needs --pump ID (or \"pump_id\" in the config)");
+  agent::SimulationOptions sim;
+  sim.pump_id = cfg.pump_id;
+  sim.faults = c.opts.count("--fault") ? c.opts.at("--fault") : std::vector<std::string>{};
+  if (c.has("--seed")) sim.seed = static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40));
+  const long long runs = c.has("--runs") ? integer_option(c, "--runs", 1, 1000000) : 1;
+  agent::PumpSimulator simulator(cfg.model, sim);
+  stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+  bool all_ok = true;
+  for (long long i = 0; i < runs && !g_stop; ++i) {
+    if (i > 0) {
+      const auto until =
+          std::chrono::steady_clock::now() + std::chrono::duration<double>(cfg.identification_interval_s);
+      while (!g_stop && std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (g_stop) break;
+    }
+    std::fprintf(stderr, "ambdiag-agent: simulating identification run %lld of %lld\n", i + 1, runs);
+    all_ok = stream_one(ep, simulator.identification_run(), cfg, opt) && all_ok;
+  }
+  return all_ok ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  if (argc >= 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
+    std::printf("%s", kUsage);
+    return 0;
+  }
+  try {
+    const Cli c = parse(argc, argv);
+    return run(c);
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "ambdiag-agent: %s\n%s", e.what(), kUsage);
+    return 2;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "ambdiag-agent: bad input: %s\n", e.what());
+    return 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ambdiag-agent: error: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,112 @@
+#include "ambdiag/edge_agent/config.h"
+
+#include <cmath>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/core/io_util.h"
+
+namespace ambdiag::agent {
+namespace {
+
+using nlohmann::json;
+
+struct Reader {
+  const std::string& file;
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    throw InputError(file + ": " + key + ": " + what);
+  }
+  void only(const json& obj, const std::string& where, const std::set<std::string>& keys) const {
+    if (!obj.is_object()) fail(where.empty() ? "(top level)" : where, "must be an object");
+    for (const auto& [k, v] : obj.items())
+      if (!keys.count(k)) fail(where.empty() ? k : where + "." + k, "unknown key");
+  }
+  std::string str(const json& v, const std::string& key) const {
+    if (!v.is_string() || v.get<std::string>().empty()) fail(key, "must be a non-empty string");
+    return v.get<std::string>();
+  }
+  double number(const json& v, const std::string& key) const {
+    if (!v.is_number() || !std::isfinite(v.get<double>())) fail(key, "must be a number");
+    return v.get<double>();
+  }
+  int64_t integer(const json& v, const std::string& key) const {
+    if (!v.is_number_integer()) fail(key, "must be an integer");
+    return v.get<int64_t>();
+  }
+};
+
+}  // namespace
+
+void validate(const AgentConfig& c, const std::string& origin) {
+  auto fail = [&](const std::string& key, const std::string& what) { throw InputError(origin + ": " + key + ": " + what); };
+  if (c.source != "replay" && c.source != "simulate") fail("source", "must be \"replay\" or \"simulate\"");
+  if (c.domain < 0 || c.domain > 232) fail("dds.domain", "must be in 0..232");
+  if (c.partition.empty() || c.partition.find_first_of("*?[]") != std::string::npos)
+    fail("dds.partition", "must be a plain name (no wildcards)");
+  if (!(c.identification_interval_s > 0)) fail("schedule.identification_interval_s", "must be > 0");
+  if (!(c.monitoring_interval_s > 0)) fail("schedule.monitoring_interval_s", "must be > 0");
+  if (c.spool_dir.empty()) fail("spool.dir", "must be a folder");
+  if (c.spool_limit_bytes < (1u << 20)) fail("spool.limit_bytes", "must be at least 1 MiB (1048576)");
+  if (c.memory_blocks < 1 || c.memory_blocks > 65536) fail("spool.memory_blocks", "must be in 1..65536");
+  if (c.block_frames < 1 || c.block_frames > 65536) fail("block_frames", "must be in 1..65536");
+}
+
+AgentConfig load_agent_config(const std::string& path) {
+  const std::string text = read_file_bytes(path);
+  json doc;
+  try {
+    doc = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw InputError(path + ": not valid JSON: " + e.what());
+  }
+  const Reader r{path};
+  r.only(doc, "", {"pump_id", "model", "source", "schedule", "dds", "spool", "block_frames"});
+  AgentConfig c;
+  if (doc.contains("pump_id")) c.pump_id = r.str(doc["pump_id"], "pump_id");
+  if (doc.contains("model")) c.model = r.str(doc["model"], "model");
+  if (doc.contains("source")) c.source = r.str(doc["source"], "source");
+  if (doc.contains("schedule")) {
+    const json& s = doc["schedule"];
+    r.only(s, "schedule", {"identification_interval_s", "monitoring_interval_s"});
+    if (s.contains("identification_interval_s"))
+      c.identification_interval_s = r.number(s["identification_interval_s"], "schedule.identification_interval_s");
+    if (s.contains("monitoring_interval_s"))
+      c.monitoring_interval_s = r.number(s["monitoring_interval_s"], "schedule.monitoring_interval_s");
+  }
+  if (doc.contains("dds")) {
+    const json& d = doc["dds"];
+    r.only(d, "dds", {"domain", "partition"});
+    if (d.contains("domain")) {
+      const int64_t v = r.integer(d["domain"], "dds.domain");
+      if (v < 0 || v > 232) r.fail("dds.domain", "must be in 0..232");
+      c.domain = static_cast<int>(v);
+    }
+    if (d.contains("partition")) c.partition = r.str(d["partition"], "dds.partition");
+  }
+  if (doc.contains("spool")) {
+    const json& s = doc["spool"];
+    r.only(s, "spool", {"dir", "limit_bytes", "memory_blocks"});
+    if (s.contains("dir")) c.spool_dir = r.str(s["dir"], "spool.dir");
+    if (s.contains("limit_bytes")) {
+      const int64_t v = r.integer(s["limit_bytes"], "spool.limit_bytes");
+      if (v < 0) r.fail("spool.limit_bytes", "must be >= 0");
+      c.spool_limit_bytes = static_cast<uint64_t>(v);
+    }
+    if (s.contains("memory_blocks")) {
+      const int64_t v = r.integer(s["memory_blocks"], "spool.memory_blocks");
+      if (v < 1 || v > 65536) r.fail("spool.memory_blocks", "must be in 1..65536");
+      c.memory_blocks = static_cast<uint32_t>(v);
+    }
+  }
+  if (doc.contains("block_frames")) {
+    const int64_t v = r.integer(doc["block_frames"], "block_frames");
+    if (v < 1 || v > 65536) r.fail("block_frames", "must be in 1..65536");
+    c.block_frames = static_cast<uint32_t>(v);
+  }
+  validate(c, path);
+  return c;
+}
+
+}  // namespace ambdiag::agent

@@ -1,0 +1,294 @@
+#include "ambdiag/edge_agent/streamer.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <optional>
+#include <vector>
+
+#include "ambdiag/core/checksum.h"
+
+namespace ambdiag::agent {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+int64_t now_unix_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+class RunStream {
+ public:
+  RunStream(stream::AgentEndpoints& ep, RecordingSource& src, Spool& spool, std::string pump_id,
+            const StreamOptions& opt)
+      : ep_(ep), src_(src), spool_(spool), pump_id_(std::move(pump_id)), opt_(opt), ws_(ep.participant) {
+    ws_.attach_data(ep_.ack);
+    run_id_ = src_.run().run_id;
+    header_json_ = run_to_json(src_.run()).dump();
+  }
+
+  StreamResult run() {
+    start_ = Clock::now();
+    last_progress_ = start_;
+    send_header();
+    while (!final_) {
+      const auto now = Clock::now();
+      if (now - last_heartbeat_ >= opt_.heartbeat) heartbeat(now);
+      take_acks();
+      if (final_) break;
+      if (opt_.stop_requested && opt_.stop_requested()) {
+        abort_run("agent stopped by signal");
+        break;
+      }
+      produce(now);
+      detect_server(now);
+      send_blocks();
+      maybe_send_end(now);
+      if (now - last_progress_ > opt_.timeout) {
+        give_up();
+        break;
+      }
+      ws_.wait(next_wait(now));
+    }
+    release_instances();
+    result_.n_blocks = produced_;
+    result_.total_frames = src_.frames_produced();
+    result_.checksum = checksum_;
+    heartbeat(Clock::now(), ambdiag_stream_AGENT_DONE);
+    return result_;
+  }
+
+ private:
+  void send_header() {
+    ambdiag_stream_RunHeader h{};
+    h.protocol_version = stream::kProtocolVersion;
+    h.run_id = const_cast<char*>(run_id_.c_str());
+    h.pump_id = const_cast<char*>(pump_id_.c_str());
+    h.header_json = const_cast<char*>(header_json_.c_str());
+    h.n_channels = static_cast<uint32_t>(src_.run().channels.size());
+    h.sample_rate_hz = src_.run().sample_rate_hz;
+    h.frames_per_block = src_.frames_per_block();
+    ep_.header.write(h);
+  }
+
+  // The run's header and end stay in the transient-local writers (for a
+  // server that restarts mid-run) until the run is over: then release them,
+  // so a long-running agent does not replay finished runs to new servers.
+  void release_instances() {
+    try {
+      char empty[] = "";
+      ambdiag_stream_RunHeader h{};
+      h.run_id = const_cast<char*>(run_id_.c_str());
+      h.pump_id = h.header_json = empty;
+      ep_.header.unregister(h);
+      if (end_sent_) {
+        ambdiag_stream_RunEnd e{};
+        e.run_id = const_cast<char*>(run_id_.c_str());
+        e.pump_id = e.reason = empty;
+        ep_.end.unregister(e);
+      }
+    } catch (const dds::DdsError& e) {
+      std::fprintf(stderr, "ambdiag-agent: releasing run %s: %s\n", run_id_.c_str(), e.what());
+    }
+  }
+
+  void heartbeat(Clock::time_point now, std::optional<ambdiag_stream_AgentState> forced = std::nullopt) {
+    last_heartbeat_ = now;
+    ambdiag_stream_AgentStatus s{};
+    s.protocol_version = stream::kProtocolVersion;
+    s.pump_id = const_cast<char*>(pump_id_.c_str());
+    s.run_id = const_cast<char*>(run_id_.c_str());
+    s.spool_bytes = spool_.disk_bytes();
+    s.spool_limit_bytes = spool_.limit_bytes();
+    s.spool_full = spool_full_;
+    s.blocks_pending = produced_ - acked_count_;
+    s.time_ns = now_unix_ns();
+    s.state = forced ? *forced
+              : spool_full_ ? ambdiag_stream_AGENT_SPOOL_FULL
+              : matched_ == 0 ? ambdiag_stream_AGENT_SPOOLING
+                              : ambdiag_stream_AGENT_STREAMING;
+    ep_.status.write(s);
+  }
+
+  void take_acks() {
+    ep_.ack.take(4096, [&](const ambdiag_stream_Ack& a, const dds_sample_info_t&) {
+      if (run_id_ != a.run_id) return;
+      if (!stream::compatible(a.protocol_version)) {
+        if (!warned_version_)
+          std::fprintf(stderr, "ambdiag-agent: server speaks protocol %s, this agent %s: ignoring its acks\n",
+                       stream::version_string(a.protocol_version).c_str(),
+                       stream::version_string(stream::kProtocolVersion).c_str());
+        warned_version_ = true;
+        return;
+      }
+      if (a.state == ambdiag_stream_ACK_STORED) {
+        for (int64_t s = std::max<int64_t>(a.first_seq, 0); s <= a.last_seq && s < produced_; ++s) {
+          if (acked_[static_cast<size_t>(s)]) continue;
+          acked_[static_cast<size_t>(s)] = 1;
+          ++acked_count_;
+          spool_.erase(s);
+        }
+        const int64_t before = first_unacked_;
+        while (first_unacked_ < produced_ && acked_[static_cast<size_t>(first_unacked_)]) ++first_unacked_;
+        if (first_unacked_ > before) last_progress_ = last_ack_progress_ = Clock::now();
+        send_cursor_ = std::max(send_cursor_, first_unacked_);
+      } else if (end_sent_) {
+        final_ = true;
+        result_.complete = a.state == ambdiag_stream_ACK_COMPLETE;
+        result_.message = a.message;
+      }
+    });
+  }
+
+  void produce(Clock::time_point now) {
+    const int64_t due = opt_.paced ? static_cast<int64_t>(std::chrono::duration<double>(now - start_).count() *
+                                                           src_.run().sample_rate_hz)
+                                   : INT64_MAX;
+    for (int i = 0; i < 64 && !source_done_; ++i) {
+      if (src_.frames_produced() >= due) break;
+      // As fast as possible: a file source waits for the server rather than
+      // filling the spool, except while no server is there (store-and-forward).
+      if (!opt_.paced && matched_ > 0 && produced_ - first_unacked_ >= static_cast<int64_t>(2 * opt_.window_blocks))
+        break;
+      if (!pending_) pending_ = src_.next();
+      if (!pending_) {
+        source_done_ = true;
+        break;
+      }
+      if (!spool_.put(*pending_)) {
+        if (!spool_full_)
+          std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
+                       static_cast<unsigned long long>(spool_.disk_bytes()),
+                       static_cast<unsigned long long>(spool_.limit_bytes()));
+        spool_full_ = true;
+        break;
+      }
+      if (spool_full_) std::fprintf(stderr, "ambdiag-agent: spool has room again: source resumed\n");
+      spool_full_ = false;
+      checksum_ = fnv1a64(pending_->payload.data(), pending_->payload.size(), checksum_);
+      acked_.push_back(0);
+      ++produced_;
+      pending_.reset();
+      last_progress_ = now;
+    }
+    result_.max_spool_disk_bytes = std::max(result_.max_spool_disk_bytes, spool_.disk_bytes());
+  }
+
+  void detect_server(Clock::time_point now) {
+    const int32_t m = ep_.block.matched();
+    const bool new_server = m > matched_;
+    if (m != matched_)
+      std::fprintf(stderr, "ambdiag-agent: %s (%d server reader%s matched)\n",
+                   m > matched_ ? "server appeared" : "server gone, spooling", m, m == 1 ? "" : "s");
+    matched_ = m;
+    const bool stalled = send_cursor_ > first_unacked_ && now - last_ack_progress_ > opt_.retransmit_after;
+    if ((new_server || stalled) && matched_ > 0) {
+      // Re-send everything not acknowledged (stored idempotently by the server).
+      if (send_cursor_ > first_unacked_ || end_sent_) ++result_.resends;
+      send_cursor_ = first_unacked_;
+      last_ack_progress_ = now;
+      send_header();
+      if (end_sent_) send_end();
+    }
+  }
+
+  void send_blocks() {
+    if (matched_ == 0) return;
+    while (send_cursor_ < produced_ && send_cursor_ - first_unacked_ < static_cast<int64_t>(opt_.window_blocks)) {
+      if (acked_[static_cast<size_t>(send_cursor_)]) {
+        ++send_cursor_;
+        continue;
+      }
+      const Block b = spool_.get(send_cursor_);
+      ambdiag_stream_SampleBlock s{};
+      s.protocol_version = stream::kProtocolVersion;
+      s.run_id = const_cast<char*>(run_id_.c_str());
+      s.seq = b.seq;
+      s.first_frame = b.first_frame;
+      s.n_frames = b.n_frames;
+      s.checksum = b.checksum;
+      s.payload = stream::borrow_octets(b.payload.data(), b.payload.size());
+      if (!ep_.block.write(s)) break;  // pushed back: try again next round
+      if (send_cursor_ == first_unacked_ || result_.blocks_sent == 0) last_ack_progress_ = Clock::now();
+      ++send_cursor_;
+      ++result_.blocks_sent;
+    }
+  }
+
+  void send_end(bool aborted = false, const std::string& reason = "") {
+    ambdiag_stream_RunEnd e{};
+    e.protocol_version = stream::kProtocolVersion;
+    e.run_id = const_cast<char*>(run_id_.c_str());
+    e.pump_id = const_cast<char*>(pump_id_.c_str());
+    e.total_frames = src_.frames_produced();
+    e.n_blocks = produced_;
+    e.checksum = checksum_;
+    e.aborted = aborted;
+    e.reason = const_cast<char*>(reason.c_str());
+    ep_.end.write(e);
+  }
+
+  void maybe_send_end(Clock::time_point now) {
+    if (!source_done_ || first_unacked_ < produced_ || matched_ == 0) return;
+    if (!end_sent_ || now - end_sent_at_ > opt_.retransmit_after) {
+      send_end();
+      end_sent_ = true;
+      end_sent_at_ = now;
+    }
+  }
+
+  void abort_run(const std::string& reason) {
+    send_end(true, reason);
+    ep_.end.wait_for_acks(2s);
+    result_.complete = false;
+    result_.message = "aborted: " + reason;
+  }
+
+  void give_up() {
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "timeout: no progress for %.0f s; %lld of %lld blocks acknowledged as committed%s%s",
+                  std::chrono::duration<double>(opt_.timeout).count(), static_cast<long long>(acked_count_),
+                  static_cast<long long>(produced_), matched_ == 0 ? "; no server matched" : "",
+                  end_sent_ ? "; run end sent, no verdict from the server" : "");
+    result_.complete = false;
+    result_.message = buf;
+  }
+
+  std::chrono::nanoseconds next_wait(Clock::time_point now) const {
+    if (!source_done_ && !opt_.paced && !spool_full_ && (matched_ == 0 || produced_ - first_unacked_ < static_cast<int64_t>(2 * opt_.window_blocks)))
+      return 0ns;
+    if (matched_ > 0 && send_cursor_ < produced_ && send_cursor_ - first_unacked_ < static_cast<int64_t>(opt_.window_blocks))
+      return 0ns;
+    (void)now;
+    return 5ms;
+  }
+
+  stream::AgentEndpoints& ep_;
+  RecordingSource& src_;
+  Spool& spool_;
+  std::string pump_id_;
+  const StreamOptions& opt_;
+  dds::WaitSet ws_;
+  std::string run_id_, header_json_;
+
+  Clock::time_point start_, last_progress_, last_ack_progress_, last_heartbeat_, end_sent_at_;
+  std::optional<Block> pending_;
+  bool source_done_ = false, spool_full_ = false, end_sent_ = false, final_ = false, warned_version_ = false;
+  int32_t matched_ = 0;
+  int64_t produced_ = 0, first_unacked_ = 0, send_cursor_ = 0, acked_count_ = 0;
+  std::vector<char> acked_;
+  uint64_t checksum_ = kFnv1a64Init;
+  StreamResult result_;
+};
+
+}  // namespace
+
+StreamResult stream_run(stream::AgentEndpoints& ep, RecordingSource& source, Spool& spool, const std::string& pump_id,
+                        const StreamOptions& opt) {
+  RunStream s(ep, source, spool, pump_id, opt);
+  return s.run();
+}
+
+}  // namespace ambdiag::agent

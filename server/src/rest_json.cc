@@ -1,0 +1,48 @@
+#include "rest_json.h"
+
+#include <cstdio>
+
+#include "ambdiag/server/rest_server.h"
+
+namespace ambdiag::server::detail {
+
+nlohmann::json pump_json(const storage::PumpSummary& p) {
+  nlohmann::json j = {{"pump_id", p.pump_id}, {"n_runs", p.n_runs}};
+  if (!p.last_run_id.empty()) {
+    j["last_run_id"] = p.last_run_id;
+    j["last_started_at"] = p.last_started_at;
+  }
+  return j;
+}
+
+nlohmann::json run_json(const storage::RunInfo& r, bool with_header) {
+  nlohmann::json j = {{"run_id", r.run_id},
+                      {"pump_id", r.pump_id},
+                      {"kind", r.kind},
+                      {"started_at", r.started_at},
+                      {"speed_rpm", r.speed_rpm},
+                      {"sample_rate_hz", r.sample_rate_hz},
+                      {"n_channels", r.n_channels},
+                      {"status", storage::to_string(r.status)},
+                      {"received_chunks", r.received_chunks},
+                      {"received_frames", r.received_frames},
+                      {"duplicate_chunks", r.duplicate_chunks},
+                      {"samples_bytes", r.samples_bytes()},
+                      {"samples_url", "/api/v1/runs/" + url_encode_segment(r.run_id) + "/samples.f32"},
+                      {"created_at", r.created_at},
+                      {"updated_at", r.updated_at}};
+  if (!r.status_reason.empty()) j["status_reason"] = r.status_reason;
+  if (r.expected_frames) j["expected_frames"] = *r.expected_frames;
+  if (r.expected_checksum) {
+    char buf[24];  // hex string: JSON numbers lose 64-bit precision in many clients
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(*r.expected_checksum));
+    j["expected_checksum"] = buf;
+  }
+  if (r.ended_at) j["ended_at"] = *r.ended_at;
+  if (with_header) j["header"] = nlohmann::json::parse(r.header_json);
+  return j;
+}
+
+std::string dump(const nlohmann::json& j) { return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace); }
+
+}  // namespace ambdiag::server::detail

@@ -1,0 +1,16 @@
+// JSON bodies of the REST responses.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/storage/historian.h"
+
+namespace ambdiag::server::detail {
+
+nlohmann::json pump_json(const storage::PumpSummary& p);
+// `with_header`: the run.json content as an object under "header".
+nlohmann::json run_json(const storage::RunInfo& r, bool with_header);
+// Never throws on odd bytes (invalid UTF-8 from a request path is replaced).
+std::string dump(const nlohmann::json& j);
+
+}  // namespace ambdiag::server::detail

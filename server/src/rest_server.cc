@@ -1,0 +1,210 @@
+#include "ambdiag/server/rest_server.h"
+
+#include <httplib.h>
+
+#include <chrono>
+#include <optional>
+#include <thread>
+
+#include "ambdiag/core/error.h"
+#include "reader_pool.h"
+#include "rest_json.h"
+#include "url.h"
+
+namespace ambdiag::server {
+
+namespace {
+
+using Segments = std::vector<std::string>;
+
+void send_json(httplib::Response& res, int status, const nlohmann::json& body) {
+  res.status = status;
+  res.set_content(detail::dump(body), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message) {
+  send_json(res, status, {{"error", message}});
+}
+
+// Joins segments [from, to) with '/': a run_id sent with its '/' unencoded
+// still finds its run.
+std::string join(const Segments& s, size_t from, size_t to) {
+  std::string out;
+  for (size_t i = from; i < to; ++i) out += (i > from ? "/" : "") + s[i];
+  return out;
+}
+
+enum class Route { health, pumps, pump_runs, run, samples, none };
+
+struct Match {
+  Route route = Route::none;
+  std::string id;  // pump_id or run_id
+};
+
+Match match(const Segments& s) {
+  if (s.size() < 3 || s[0] != "api" || s[1] != "v1") return {};
+  if (s.size() == 3 && s[2] == "health") return {Route::health, ""};
+  if (s[2] == "pumps") {
+    if (s.size() == 3) return {Route::pumps, ""};
+    if (s.size() == 5 && s[4] == "runs" && !s[3].empty()) return {Route::pump_runs, s[3]};
+    return {};
+  }
+  if (s[2] == "runs" && s.size() >= 4) {
+    if (s.size() >= 5 && s.back() == "samples.f32") return {Route::samples, join(s, 3, s.size() - 1)};
+    return {Route::run, join(s, 3, s.size())};
+  }
+  return {};
+}
+
+}  // namespace
+
+struct RestServer::Impl {
+  RestOptions opt;
+  detail::ReaderPool pool;
+  httplib::Server http;
+  std::thread thread;
+  int port = 0;
+  const std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+
+  explicit Impl(RestOptions o) : opt(std::move(o)), pool(opt.db_path, std::max(1, opt.worker_threads)) {}
+
+  void handle_get(const httplib::Request& req, httplib::Response& res) {
+    const auto segments = detail::split_path(req.target);
+    if (!segments) return send_error(res, 400, "bad path or percent-encoding: " + req.target);
+    const Match m = match(*segments);
+    switch (m.route) {
+      case Route::health: return health(res);
+      case Route::pumps: return pumps(res);
+      case Route::pump_runs: return pump_runs(res, m.id);
+      case Route::run: return run(res, m.id);
+      case Route::samples: return samples(res, m.id);
+      case Route::none: break;
+    }
+    send_error(res, 404, "no such resource: " + req.path);
+  }
+
+  void handle_other(const httplib::Request& req, httplib::Response& res) {
+    const auto segments = detail::split_path(req.target);
+    if (!segments) return send_error(res, 400, "bad path or percent-encoding: " + req.target);
+    if (match(*segments).route == Route::none) return send_error(res, 404, "no such resource: " + req.path);
+    res.set_header("Allow", "GET, HEAD");
+    send_error(res, 405, req.method + " not allowed; this resource is read-only (GET)");
+  }
+
+  void health(httplib::Response& res) {
+    auto h = pool.acquire();
+    nlohmann::json j = {
+        {"status", "ok"},
+        {"service", "ambdiag"},
+        {"version", "0.1.0"},
+        {"schema_version", storage::Historian::schema_version()},
+        {"runs", h->count_runs()},
+        {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}};
+    if (opt.health_extra) j.update(opt.health_extra());
+    send_json(res, 200, j);
+  }
+
+  void pumps(httplib::Response& res) {
+    auto h = pool.acquire();
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& p : h->list_pumps()) list.push_back(detail::pump_json(p));
+    send_json(res, 200, {{"pumps", list}});
+  }
+
+  void pump_runs(httplib::Response& res, const std::string& pump_id) {
+    auto h = pool.acquire();
+    auto snap = h->snapshot();
+    if (!h->find_pump(pump_id)) return send_error(res, 404, "no pump '" + pump_id + "'");
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& r : h->list_runs(pump_id)) list.push_back(detail::run_json(r, false));
+    send_json(res, 200, {{"pump_id", pump_id}, {"runs", list}});
+  }
+
+  void run(httplib::Response& res, const std::string& run_id) {
+    auto h = pool.acquire();
+    const auto r = h->find_run(run_id);
+    if (!r) return send_error(res, 404, "no run '" + run_id + "'");
+    send_json(res, 200, detail::run_json(*r, true));
+  }
+
+  // Streams the chunks from one read snapshot, so the announced length and
+  // the bytes agree even while the writer adds chunks.
+  void samples(httplib::Response& res, const std::string& run_id) {
+    struct Download {
+      detail::ReaderPool::Lease lease;
+      std::optional<storage::Historian::Snapshot> snap;  // declared after: released first
+    };
+    auto d = std::make_shared<Download>(Download{pool.acquire(), std::nullopt});
+    d->snap.emplace(d->lease->snapshot());
+    const auto r = d->lease->find_run(run_id);
+    if (!r) return send_error(res, 404, "no run '" + run_id + "'");
+    res.status = 200;
+    res.set_header("X-Run-Status", storage::to_string(r->status));
+    res.set_content_provider(
+        static_cast<size_t>(r->samples_bytes()), "application/octet-stream",
+        [d, run_id](size_t offset, size_t, httplib::DataSink& sink) {
+          if (offset != 0) return false;  // everything is written in the first call
+          return d->lease->stream_samples(run_id, [&](std::span<const std::uint8_t> b) {
+            return sink.write(reinterpret_cast<const char*>(b.data()), b.size());
+          });
+        },
+        [d](bool) mutable { d.reset(); });
+  }
+};
+
+RestServer::RestServer(RestOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
+  auto& http = impl_->http;
+  auto* impl = impl_.get();
+  const int workers = std::max(1, impl->opt.worker_threads);
+  http.new_task_queue = [workers] { return new httplib::ThreadPool(static_cast<size_t>(workers)); };
+  http.set_tcp_nodelay(true);  // small JSON replies: 310 -> 31k requests/s (STACK.md)
+  http.set_keep_alive_timeout(std::max(1, impl->opt.keep_alive_timeout_s));
+  http.set_keep_alive_max_count(static_cast<size_t>(std::max(1, impl->opt.keep_alive_max_requests)));
+  http.set_read_timeout(5, 0);
+  http.set_payload_max_length(64 * 1024);  // read-only API: no large bodies
+  const auto get = [impl](const httplib::Request& req, httplib::Response& res) { impl->handle_get(req, res); };
+  const auto other = [impl](const httplib::Request& req, httplib::Response& res) { impl->handle_other(req, res); };
+  http.Get(".*", get);
+  http.Post(".*", other);
+  http.Put(".*", other);
+  http.Patch(".*", other);
+  http.Delete(".*", other);
+  http.Options(".*", other);
+  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+    try {
+      std::rethrow_exception(ep);
+    } catch (const InputError& e) {
+      send_error(res, 400, e.what());
+    } catch (const std::exception& e) {
+      send_error(res, 500, std::string("internal error: ") + e.what());
+    } catch (...) {
+      send_error(res, 500, "internal error");
+    }
+  });
+  // httplib's own refusals (malformed request line, too long URI, ...) as JSON too.
+  http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    if (res.body.empty()) send_error(res, res.status, "HTTP " + std::to_string(res.status));
+  });
+}
+
+RestServer::~RestServer() { stop(); }
+
+int RestServer::start() {
+  auto& o = impl_->opt;
+  if (impl_->thread.joinable()) return impl_->port;
+  const int port = o.port == 0 ? impl_->http.bind_to_any_port(o.host) : (impl_->http.bind_to_port(o.host, o.port) ? o.port : -1);
+  if (port <= 0) throw InputError("REST: cannot listen on " + o.host + ":" + std::to_string(o.port));
+  impl_->port = port;
+  impl_->thread = std::thread([this] { impl_->http.listen_after_bind(); });
+  return port;
+}
+
+void RestServer::stop() {
+  if (!impl_ || !impl_->thread.joinable()) return;
+  impl_->http.stop();
+  impl_->thread.join();
+}
+
+int RestServer::port() const { return impl_->port; }
+
+}  // namespace ambdiag::server

@@ -1,0 +1,181 @@
+// The historian: every run a pump streamed (or a recording imported), kept in
+// one SQLite file (docs/storage.md has the schema, pragmas and migrations).
+//
+// A run is its header (the recording's run.json, stored verbatim) plus sample
+// chunks: chunk `seq` (0, 1, 2, ...) holds `n_frames` frames starting at frame
+// `first_frame`, as float32 little-endian interleaved by channel, i.e. a slice
+// of the recording's samples.f32. Chunks may arrive in any order and more than
+// once; the run end gives the frame count and the FNV-1a 64 checksum of the
+// whole samples.f32 (core/checksum.h), and the historian checks both against
+// what it holds: the run is then `complete`, or `incomplete` with a reason.
+//
+// Threads: a Historian is one SQLite connection; use it from one thread at a
+// time. One writer (Mode::write) per file; readers (Mode::read) open their own
+// connection each, in any thread or process. WAL lets readers run beside the
+// writer: a reader sees the last committed state and never blocks the writer.
+//
+// Errors: bad input (unknown run, wrong chunk size, conflicting header or
+// chunk, a file that is not an ambdiag historian or is newer than this
+// program) throws ambdiag::InputError naming what is wrong; nothing of a
+// refused call is stored. Disk and SQLite failures throw StorageError.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace ambdiag::storage {
+
+// The database failed (I/O error, disk full, locked past the busy timeout).
+class StorageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class RunStatus { receiving, complete, incomplete };
+std::string to_string(RunStatus s);
+
+// What begin_run needs. Build it with run_header_from_json, which parses and
+// checks the run.json text with core's run_from_json.
+struct RunHeader {
+  std::string run_id;
+  std::string pump_id;
+  std::string kind;        // identification | monitoring
+  std::string started_at;  // ISO 8601
+  double speed_rpm = 0.0;
+  double sample_rate_hz = 0.0;
+  struct Channel {
+    std::string name, role, unit, input;
+  };
+  std::vector<Channel> channels;
+  std::string header_json;  // the run.json text, kept byte for byte
+};
+// Throws InputError (prefixed with `source`) if the text is not a valid run.json.
+RunHeader run_header_from_json(const std::string& run_json_text, const std::string& source = "run header");
+
+// One slice of samples.f32; `bytes` must hold n_frames * n_channels * 4 bytes.
+struct Chunk {
+  std::int64_t seq = 0;
+  std::int64_t first_frame = 0;
+  std::int64_t n_frames = 0;
+  std::span<const std::uint8_t> bytes;
+};
+
+struct PutResult {
+  std::int64_t stored = 0;      // new chunks
+  std::int64_t duplicates = 0;  // chunks already held with the same bytes (ignored)
+};
+
+struct RunInfo {
+  std::string run_id, pump_id, kind, started_at;
+  double speed_rpm = 0.0;
+  double sample_rate_hz = 0.0;
+  int n_channels = 0;
+  RunStatus status = RunStatus::receiving;
+  std::string status_reason;  // why incomplete; empty otherwise
+  std::optional<std::int64_t> expected_frames;     // from the run end
+  std::optional<std::uint64_t> expected_checksum;  // from the run end
+  std::int64_t received_chunks = 0;
+  std::int64_t received_frames = 0;
+  std::int64_t duplicate_chunks = 0;
+  std::string created_at, updated_at;  // server clock, ISO 8601 UTC
+  std::optional<std::string> ended_at;
+  std::string header_json;  // run.json text (find_run only; empty in lists)
+
+  std::int64_t samples_bytes() const { return received_frames * n_channels * 4; }
+};
+
+struct PumpSummary {
+  std::string pump_id;
+  std::int64_t n_runs = 0;
+  std::string last_run_id;
+  std::string last_started_at;
+};
+
+struct EndResult {
+  RunStatus status = RunStatus::receiving;
+  std::string reason;  // empty when complete
+  std::int64_t frames_held = 0;
+  std::uint64_t checksum_held = 0;  // FNV-1a 64 of the chunks held, in seq order
+};
+
+class Historian {
+ public:
+  enum class Mode {
+    write,  // creates the file if missing and migrates the schema
+    read    // the file must exist with the current schema; writes refused
+  };
+  // Throws InputError if the file is not an SQLite database, not an ambdiag
+  // historian, or has a newer schema than this program knows.
+  static Historian open(const std::string& path, Mode mode = Mode::write);
+
+  Historian(Historian&&) noexcept;
+  Historian& operator=(Historian&&) noexcept;
+  ~Historian();
+
+  static int schema_version();  // the version this program writes
+  const std::string& path() const;
+
+  // --- writing (Mode::write) ---
+  // Registers the pump if new and the run as `receiving`. Idempotent: the
+  // same header again is a no-op; another header under the same run_id throws.
+  void begin_run(const RunHeader& header);
+  // Stores chunks in one transaction (all or nothing). A (run_id, seq) held
+  // with the same bytes and frames is a duplicate: counted and ignored; with
+  // other bytes it throws. Throws for an unknown run, a size that is not
+  // n_frames * n_channels * 4, negative seq/frames, or a new chunk for a
+  // complete run.
+  PutResult put_chunks(const std::string& run_id, std::span<const Chunk> chunks);
+  // The run end: checks seq 0..n-1 without gaps, first_frame contiguous,
+  // the frame total and the checksum, reading the run once from the
+  // database. Sets `complete` or `incomplete` with the first problem found.
+  // Calling it again (e.g. after late chunks of an incomplete run) checks
+  // again; on a complete run with the same figures it is a no-op, with other
+  // figures it throws.
+  EndResult end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum);
+  // For a run whose end will not come (agent gone): `incomplete` with the
+  // reason. A complete run stays complete. Returns the status afterwards.
+  RunStatus mark_incomplete(const std::string& run_id, const std::string& reason);
+
+  // --- reading (either mode) ---
+  std::vector<PumpSummary> list_pumps();
+  std::optional<PumpSummary> find_pump(const std::string& pump_id);
+  std::vector<RunInfo> list_runs(const std::string& pump_id);  // by started_at
+  std::optional<RunInfo> find_run(const std::string& run_id);
+  std::int64_t count_runs();
+  // The chunks held, concatenated in seq order: for a complete run exactly
+  // the recording's samples.f32. Throws InputError for an unknown run.
+  std::string read_samples(const std::string& run_id);
+  // Same bytes, one call per chunk in seq order, inside one read snapshot;
+  // stops early (returning false) when `sink` returns false.
+  bool stream_samples(const std::string& run_id,
+                      const std::function<bool(std::span<const std::uint8_t>)>& sink);
+
+  // A read snapshot: while it lives, every read on this Historian sees the
+  // same committed state (e.g. a run's size and then its bytes).
+  class Snapshot {
+   public:
+    Snapshot(Snapshot&&) noexcept;
+    Snapshot& operator=(Snapshot&&) = delete;
+    ~Snapshot();
+
+   private:
+    friend class Historian;
+    explicit Snapshot(Historian* h);
+    Historian* h_;
+  };
+  Snapshot snapshot();
+
+  struct Impl;
+
+ private:
+  explicit Historian(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ambdiag::storage

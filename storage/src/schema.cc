@@ -1,0 +1,177 @@
+#include "schema.h"
+
+#include <string>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/storage/historian.h"
+
+namespace ambdiag::storage::detail {
+
+namespace {
+
+struct Migration {
+  int version;
+  const char* sql;
+};
+
+// Append only: a released migration is never edited, a change is a new one.
+// STRICT tables make SQLite refuse values of the wrong type.
+constexpr Migration kMigrations[] = {
+    {1, R"sql(
+CREATE TABLE pumps (
+  pump_id     TEXT PRIMARY KEY,
+  first_seen  TEXT NOT NULL
+) STRICT;
+
+CREATE TABLE runs (
+  run_id            TEXT PRIMARY KEY,
+  pump_id           TEXT NOT NULL REFERENCES pumps(pump_id),
+  kind              TEXT NOT NULL,
+  started_at        TEXT NOT NULL,
+  speed_rpm         REAL NOT NULL,
+  sample_rate_hz    REAL NOT NULL,
+  n_channels        INTEGER NOT NULL CHECK (n_channels > 0),
+  header            TEXT NOT NULL,
+  status            TEXT NOT NULL CHECK (status IN ('receiving', 'complete', 'incomplete')),
+  status_reason     TEXT NOT NULL DEFAULT '',
+  expected_frames   INTEGER,
+  expected_checksum INTEGER,
+  received_chunks   INTEGER NOT NULL DEFAULT 0,
+  received_frames   INTEGER NOT NULL DEFAULT 0,
+  duplicate_chunks  INTEGER NOT NULL DEFAULT 0,
+  created_at        TEXT NOT NULL,
+  updated_at        TEXT NOT NULL,
+  ended_at          TEXT
+) STRICT;
+CREATE INDEX runs_by_pump ON runs(pump_id, started_at);
+
+CREATE TABLE channels (
+  run_id  TEXT NOT NULL REFERENCES runs(run_id) ON DELETE CASCADE,
+  idx     INTEGER NOT NULL,
+  name    TEXT NOT NULL,
+  role    TEXT NOT NULL,
+  unit    TEXT NOT NULL,
+  input   TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY (run_id, idx)
+) STRICT, WITHOUT ROWID;
+
+CREATE TABLE sample_chunks (
+  run_id       TEXT NOT NULL REFERENCES runs(run_id) ON DELETE CASCADE,
+  seq          INTEGER NOT NULL CHECK (seq >= 0),
+  first_frame  INTEGER NOT NULL CHECK (first_frame >= 0),
+  n_frames     INTEGER NOT NULL CHECK (n_frames > 0),
+  data         BLOB NOT NULL,
+  PRIMARY KEY (run_id, seq)
+) STRICT;
+
+CREATE TABLE frfs (
+  frf_id      INTEGER PRIMARY KEY,
+  run_id      TEXT NOT NULL REFERENCES runs(run_id) ON DELETE CASCADE,
+  method      TEXT NOT NULL,
+  created_at  TEXT NOT NULL,
+  data        TEXT NOT NULL
+) STRICT;
+CREATE INDEX frfs_by_run ON frfs(run_id);
+
+CREATE TABLE features (
+  feature_id  INTEGER PRIMARY KEY,
+  pump_id     TEXT NOT NULL REFERENCES pumps(pump_id),
+  run_id      TEXT REFERENCES runs(run_id) ON DELETE CASCADE,
+  name        TEXT NOT NULL,
+  value       REAL NOT NULL,
+  unit        TEXT NOT NULL DEFAULT '',
+  at          TEXT NOT NULL,
+  detail      TEXT
+) STRICT;
+CREATE INDEX features_by_pump ON features(pump_id, name, at);
+
+CREATE TABLE alarms (
+  alarm_id      INTEGER PRIMARY KEY,
+  pump_id       TEXT NOT NULL REFERENCES pumps(pump_id),
+  run_id        TEXT REFERENCES runs(run_id) ON DELETE SET NULL,
+  raised_at     TEXT NOT NULL,
+  severity      TEXT NOT NULL,
+  kind          TEXT NOT NULL,
+  message       TEXT NOT NULL,
+  detail        TEXT,
+  acknowledged  INTEGER NOT NULL DEFAULT 0
+) STRICT;
+CREATE INDEX alarms_by_pump ON alarms(pump_id, raised_at);
+
+CREATE TABLE jobs (
+  job_id      TEXT PRIMARY KEY,
+  kind        TEXT NOT NULL,
+  status      TEXT NOT NULL,
+  params      TEXT NOT NULL,
+  result      TEXT,
+  error       TEXT,
+  created_at  TEXT NOT NULL,
+  updated_at  TEXT NOT NULL
+) STRICT;
+)sql"},
+};
+
+int pragma_int(Db& db, const char* sql) {
+  Stmt s(db, sql);
+  return s.step() ? static_cast<int>(s.col_int(0)) : 0;
+}
+
+}  // namespace
+
+int latest_schema_version() { return kMigrations[std::size(kMigrations) - 1].version; }
+
+void set_pragmas(Db& db, bool read_only) {
+  db.check(sqlite3_busy_timeout(db.get(), 10000), "busy_timeout");
+  // A reader must not turn a rollback-journal file into WAL behind a writer's back.
+  if (!read_only) {
+    Stmt wal(db, "PRAGMA journal_mode = WAL");
+    if (!wal.step() || wal.col_text(0) != "wal")
+      throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");
+  }
+  db.exec(
+      "PRAGMA synchronous = NORMAL;"  // WAL: durable at checkpoint, consistent always
+      "PRAGMA temp_store = MEMORY;"
+      "PRAGMA secure_delete = OFF;"     // Debian builds it ON: no zeroing of freed pages
+      "PRAGMA foreign_keys = ON;",
+      "pragmas");
+  // KiB. The writer's 64 MiB holds a batch of chunks and the indexes' hot
+  // pages; readers (one per REST worker) stream blobs through and need less.
+  db.exec(read_only ? "PRAGMA cache_size = -8192" : "PRAGMA cache_size = -65536", "pragmas");
+  if (read_only) db.exec("PRAGMA query_only = ON", "pragmas");
+}
+
+void migrate(Db& db, bool read_only) {
+  const int latest = latest_schema_version();
+  // The first read of the file: a garbage file fails here with "not a database".
+  const int app_id = pragma_int(db, "PRAGMA application_id");
+  int version = pragma_int(db, "PRAGMA user_version");
+  if (app_id != 0 && app_id != kApplicationId)
+    throw InputError(db.path() + ": an SQLite database of another application (application_id " +
+                     std::to_string(app_id) + "), not an ambdiag historian");
+  if (version > latest)
+    throw InputError(db.path() + ": schema version " + std::to_string(version) +
+                     " is newer than this program's (" + std::to_string(latest) +
+                     "); use a newer ambdiag to open it");
+  if (app_id == 0 && pragma_int(db, "SELECT count(*) FROM sqlite_schema") > 0)
+    throw InputError(db.path() + ": an SQLite database with tables but no ambdiag mark, not an ambdiag historian");
+  if (read_only) {
+    if (version < latest)
+      throw InputError(db.path() + ": schema version " + std::to_string(version) + ", this program needs " +
+                       std::to_string(latest) + "; open it once with a writer (ambdiag serve) to migrate");
+    return;
+  }
+  for (const auto& m : kMigrations) {
+    Transaction tx(db, Transaction::Kind::write);
+    version = pragma_int(db, "PRAGMA user_version");  // another writer may have migrated meanwhile
+    if (m.version <= version) continue;
+    db.exec(m.sql, "migration");
+    // PRAGMA takes no parameters; the values are this program's constants.
+    db.exec(("PRAGMA user_version = " + std::to_string(m.version) + ";PRAGMA application_id = " +
+             std::to_string(kApplicationId))
+                .c_str(),
+            "migration");
+    tx.commit();
+  }
+}
+
+}  // namespace ambdiag::storage::detail

@@ -1,0 +1,19 @@
+// The historian's schema: pragmas, migrations keyed by PRAGMA user_version.
+#pragma once
+
+#include "sqlite_db.h"
+
+namespace ambdiag::storage::detail {
+
+// 'AMBD': marks the file as an ambdiag historian (PRAGMA application_id).
+inline constexpr int kApplicationId = 0x414D4244;
+
+int latest_schema_version();
+// Sets the connection pragmas (docs/storage.md says why each).
+void set_pragmas(Db& db, bool read_only);
+// Writer: applies every missing migration, each in its own transaction.
+// Reader: checks the schema is current. Both refuse a file that is another
+// application's database or has a newer schema than this program.
+void migrate(Db& db, bool read_only);
+
+}  // namespace ambdiag::storage::detail

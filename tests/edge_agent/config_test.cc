@@ -1,0 +1,52 @@
+#include "ambdiag/edge_agent/config.h"
+
+#include <gtest/gtest.h>
+
+#include "ambdiag/core/error.h"
+#include "test_support.h"
+
+namespace ambdiag::agent {
+namespace {
+
+std::string error_of(const std::string& text) {
+  try {
+    load_agent_config(ambdiag::testing::write_scratch("agent.json", text).string());
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(AgentConfig, ReadsEveryKey) {
+  const auto path = ambdiag::testing::write_scratch(
+      "agent.json",
+      R"({"pump_id": "P-7", "model": "plant.json", "source": "simulate",
+          "schedule": {"identification_interval_s": 600, "monitoring_interval_s": 5},
+          "dds": {"domain": 12, "partition": "site-b"},
+          "spool": {"dir": "/tmp/s", "limit_bytes": 2097152, "memory_blocks": 8}, "block_frames": 256})");
+  const AgentConfig c = load_agent_config(path.string());
+  EXPECT_EQ(c.pump_id, "P-7");
+  EXPECT_EQ(c.source, "simulate");
+  EXPECT_EQ(c.identification_interval_s, 600);
+  EXPECT_EQ(c.domain, 12);
+  EXPECT_EQ(c.partition, "site-b");
+  EXPECT_EQ(c.spool_limit_bytes, 2097152u);
+  EXPECT_EQ(c.memory_blocks, 8u);
+  EXPECT_EQ(c.block_frames, 256u);
+}
+
+TEST(AgentConfig, ErrorsNameTheKey) {
+  EXPECT_NE(error_of(R"({"dds": {"domain": 300}})").find("dds.domain"), std::string::npos);
+  EXPECT_NE(error_of(R"({"dds": {"partiton": "x"}})").find("dds.partiton: unknown key"), std::string::npos);
+  EXPECT_NE(error_of(R"({"dds": {"partition": "site*"}})").find("dds.partition"), std::string::npos);
+  EXPECT_NE(error_of(R"({"spool": {"limit_bytes": 10}})").find("spool.limit_bytes"), std::string::npos);
+  EXPECT_NE(error_of(R"({"source": "tape"})").find("source"), std::string::npos);
+  EXPECT_NE(error_of(R"({"block_frames": 0})").find("block_frames"), std::string::npos);
+  EXPECT_NE(error_of(R"({"schedule": {"monitoring_interval_s": "often"}})").find("schedule.monitoring_interval_s"),
+            std::string::npos);
+  EXPECT_NE(error_of("{not json").find("not valid JSON"), std::string::npos);
+  EXPECT_NE(error_of("[1]").find("must be an object"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ambdiag::agent

@@ -1,0 +1,59 @@
+// Helpers for the historian tests: a run.json text, seeded samples, chunks.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/core/checksum.h"
+#include "ambdiag/storage/historian.h"
+
+namespace ambdiag::testing {
+
+inline std::string run_json_text(const std::string& run_id, int n_channels, const std::string& pump_id = "P-7",
+                                 double speed_rpm = 3000.0) {
+  nlohmann::json j = {{"format", "ambdiag.run/1"}, {"pump_id", pump_id},   {"run_id", run_id},
+                      {"kind", "monitoring"},      {"started_at", "2026-11-21T10:00:00Z"},
+                      {"speed_rpm", speed_rpm},    {"sample_rate_hz", 1000.0}};
+  j["channels"] = nlohmann::json::array();
+  for (int c = 0; c < n_channels; ++c)
+    j["channels"].push_back({{"name", "x" + std::to_string(c)}, {"role", "displacement"}, {"unit", "m"}});
+  return j.dump(2);
+}
+
+// A run's samples.f32 bytes: n_frames x n_channels seeded float32 values.
+inline std::vector<std::uint8_t> samples_bytes(std::int64_t n_frames, int n_channels, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> d(0.0f, 1.0f);
+  std::vector<float> v(static_cast<size_t>(n_frames * n_channels));
+  for (auto& x : v) x = d(rng);
+  std::vector<std::uint8_t> b(v.size() * sizeof(float));
+  std::memcpy(b.data(), v.data(), b.size());
+  return b;
+}
+
+// Cuts samples into chunks of `frames_per_chunk` frames, seq 0, 1, ...
+inline std::vector<storage::Chunk> cut_chunks(std::span<const std::uint8_t> bytes, int n_channels,
+                                              std::int64_t frames_per_chunk) {
+  const std::int64_t frame_bytes = n_channels * 4;
+  const std::int64_t n_frames = static_cast<std::int64_t>(bytes.size()) / frame_bytes;
+  std::vector<storage::Chunk> out;
+  for (std::int64_t f = 0, seq = 0; f < n_frames; f += frames_per_chunk, ++seq) {
+    const std::int64_t n = std::min(frames_per_chunk, n_frames - f);
+    out.push_back({seq, f, n, bytes.subspan(static_cast<size_t>(f * frame_bytes), static_cast<size_t>(n * frame_bytes))});
+  }
+  return out;
+}
+
+inline std::uint64_t checksum_of(std::span<const std::uint8_t> bytes) { return fnv1a64(bytes.data(), bytes.size()); }
+
+inline std::string as_string(std::span<const std::uint8_t> b) {
+  return std::string(reinterpret_cast<const char*>(b.data()), b.size());
+}
+
+}  // namespace ambdiag::testing
