@@ -25,6 +25,7 @@ std::vector<Command> convert_commands();
 std::vector<Command> estimate_commands();
 std::vector<Command> fit_commands();
 std::vector<Command> serve_commands();
+std::vector<Command> db_commands();
 
 // Writes progress "label: done/total" on stderr, at most every 200 ms and at
 // the end; silent when stderr is not a terminal unless forced by

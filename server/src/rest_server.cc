@@ -144,9 +144,13 @@ struct RestServer::Impl {
         static_cast<size_t>(r->samples_bytes()), "application/octet-stream",
         [d, run_id](size_t offset, size_t, httplib::DataSink& sink) {
           if (offset != 0) return false;  // everything is written in the first call
-          return d->lease->stream_samples(run_id, [&](std::span<const std::uint8_t> b) {
-            return sink.write(reinterpret_cast<const char*>(b.data()), b.size());
-          });
+          try {  // runs after the handler, outside httplib's exception handler
+            return d->lease->stream_samples(run_id, [&](std::span<const std::uint8_t> b) {
+              return sink.write(reinterpret_cast<const char*>(b.data()), b.size());
+            });
+          } catch (const std::exception&) {
+            return false;  // the client sees a short body and a closed connection
+          }
         },
         [d](bool) mutable { d.reset(); });
   }
