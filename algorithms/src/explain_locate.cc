@@ -95,7 +95,9 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
     std::set<std::string> outs, ins, planes, dirs, axes;
     int direct = 0, cross = 0;
     double sum = 0.0, cross_energy = 0.0, total_energy = 0.0;
-    double mag_dev = 0.0, phase_dev = 0.0, phase_sign = 0.0;
+    // Share of the band's weighted residual that one delay explains:
+    // d ~ tau a with a = -j w H_model / sigma (least squares in tau).
+    double s_ad = 0.0, s_aa = 0.0, s_dd = 0.0;
     size_t worst = *ents.begin();
     double worst_e = -1.0;
     for (size_t e : ents) {
@@ -118,13 +120,12 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
       double ee = 0.0;
       for (size_t l = lo; l <= hi; ++l) {
         ee += e2[e][l];
-        if (std::abs(mo->h[l]) > 0.0 && std::abs(me.h[l]) > 0.0) {
-          const auto q = me.h[l] / mo->h[l];
-          const double w = e2[e][l];
-          mag_dev += w * std::abs(std::log(std::abs(q)));
-          phase_dev += w * std::abs(std::arg(q));
-          phase_sign += w * std::arg(q);
-        }
+        const double sg = eval.sigma(e, l);
+        const std::complex<double> da = std::complex<double>(0.0, -2 * M_PI * meas.freq_hz[l]) * mo->h[l] / sg;
+        const std::complex<double> d = (me.h[l] - mo->h[l]) / sg;
+        s_ad += (std::conj(da) * d).real();
+        s_aa += std::norm(da);
+        s_dd += std::norm(d);
       }
       sum += ee;
       total_energy += ee;
@@ -146,7 +147,6 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
     // The rotor or housing mode of the model nearest the band's worst peak.
     const FrfEntry& me = meas.entries[worst];
     const FrfEntry* mo = model.find(me.output, me.input);
-    const double span = m.band_hi_hz - m.band_lo_hz;
     const Mode* near = nullptr;
     for (const auto& md : model_modes) {
       if (md.overdamped || md.zeta > 0.5) continue;
@@ -154,8 +154,8 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
       const double mid = 0.5 * (m.band_lo_hz + m.band_hi_hz);
       if (!near || std::abs(md.f_hz - mid) < std::abs(near->f_hz - mid)) near = &md;
     }
-    const bool wide = span > 0.3 * (meas.freq_hz.back() - meas.freq_hz.front());
-    if (phase_dev > 3.0 * mag_dev && std::abs(phase_sign) > 0.8 * phase_dev && (wide || ents.size() >= meas.entries.size() / 2)) {
+    const double delay_share = s_aa > 0 && s_dd > 0 ? s_ad * s_ad / (s_aa * s_dd) : 0.0;
+    if (delay_share > 0.7 && ents.size() >= 2) {
       m.kind = "phase_drift";
     } else if (cross > 0 && cross_energy > 0.6 * total_energy) {
       m.kind = "cross_asymmetry";

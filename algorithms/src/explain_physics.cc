@@ -255,7 +255,6 @@ Candidate added_mass(const PlantModel& plant, int node) {
   c.id = "added_mass:node" + std::to_string(node);
   c.location = {{"node", node}};
   c.params = {{"kg", 0.0, 0.0, 0.5 * mr, ms}, {"Id", 0.0, 0.0, 0.5 * mr * 0.01, ms * 0.002}};
-  c.screen_params = 1;  // the mass alone says where; Id is fitted afterwards
   c.apply = [node](const std::vector<double>& x, PlantVariant& v) {
     v.plant.disks.push_back({"added_mass_node" + std::to_string(node), node, x[0], x[1], 0.0});
   };

@@ -359,19 +359,22 @@ class Selector {
           }
           if (c.location["node"].get<int>() != n) continue;
           Trial t = try_candidate(others, c, nullptr, cf, cv, &sum);
-          if (t.chi2_fit < cf && t.chi2_val < cv && (!best || t.chi2_fit < best->chi2_fit)) {
+          if (!best || t.chi2_fit < best->chi2_fit) {
             best = t;
             best_c = c;
           }
         }
         if (best) {
-          progress("merged " + sel[a].c.id + " and " + sel[b].c.id + " into " + best_c.id);
           Selected m = sel[a];
           m.c = best_c;
           m.x = best->x;
-          sel = others;
-          sel.push_back(m);
-          refit_all(sel);
+          std::vector<Selected> merged = others;
+          merged.push_back(m);
+          refit_all(merged);
+          const PlantVariant mv = build(merged);
+          if (chi2(mv, fit_) >= cf || chi2(mv, val_) >= cv) continue;
+          progress("merged " + sel[a].c.id + " and " + sel[b].c.id + " into " + best_c.id);
+          sel = merged;
           return merge_between(sel);
         }
       }
