@@ -26,6 +26,7 @@ std::vector<Command> estimate_commands();
 std::vector<Command> fit_commands();
 std::vector<Command> serve_commands();
 std::vector<Command> db_commands();
+std::vector<Command> explain_commands();
 
 // Writes progress "label: done/total" on stderr, at most every 200 ms and at
 // the end; silent when stderr is not a terminal unless forced by

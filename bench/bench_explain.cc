@@ -1,0 +1,47 @@
+// Explain benchmark (docs/benchmarks.md, "Explain (issue 7)"): one explain
+// run per shared explain_* case, wall and CPU time (user + sys; the machine
+// is shared), rotor FRF solves and model evaluations.
+//
+//   bench_explain [CASE ...]      (default: the four explain_* cases)
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "ambdiag/algorithms/explain.h"
+#include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/plant_model.h"
+
+namespace {
+
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const char* env = std::getenv("AMBDIAG_SHARED_DATA");
+  const std::string dir = env ? env : AMBDIAG_BENCH_SHARED_DATA;
+  std::vector<std::string> cases(argv + 1, argv + argc);
+  if (cases.empty()) cases = {"explain_cross_coupling", "explain_delay", "explain_paper_table3", "explain_none"};
+  std::printf("%-24s %8s %8s %8s %8s %6s %6s %9s %9s\n", "case", "wall_s", "cpu_s", "solves", "evals", "expl", "upd", "nrmse0",
+              "nrmse1");
+  for (const auto& c : cases) {
+    const ambdiag::PlantModel p = ambdiag::read_plant_file(dir + "/" + c + "/nominal.json");
+    const ambdiag::FrfData m = ambdiag::read_frf_csv(dir + "/" + c + "/frf.csv");
+    const double c0 = cpu_seconds();
+    const auto t0 = std::chrono::steady_clock::now();
+    const ambdiag::ExplainResult r = ambdiag::explain(p, m);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double cpu = cpu_seconds() - c0;
+    std::printf("%-24s %8.2f %8.2f %8d %8d %6zu %6zu %9.4f %9.4f\n", c.c_str(), wall, cpu, r.rotor_solves, r.evaluations,
+                r.explanations.size(), r.updated_parameters.size(), r.nrmse_before, r.nrmse_after);
+  }
+  return 0;
+}
