@@ -51,15 +51,28 @@ struct LinearSolution {
 // Residues and direct terms for fixed poles (weighted least squares per entry).
 LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles);
 
+// The data seen through a pure delay tau: h e^{+j w tau}, so that a rational
+// model of it is the rational part of H_meas = H_rat e^{-j w tau}.
+FitData undelayed(const FitData& data, double delay_s);
+
 struct MlSolution {
   std::vector<cd> poles;
+  double delay_s = 0.0;   // estimated (fit_delay) or the fixed delay
+  double delay_sd_s = 0.0;
   LinearSolution linear;
   Eigen::MatrixXd pole_covariance;  // of [Re p, Im p] per pair / [p] per real pole, unscaled (J^T J)^-1
   int iterations = 0;
   bool converged = false;
   std::string stop_reason;
 };
-// Levenberg-Marquardt on the poles with the residues projected out.
-MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations);
+// Levenberg-Marquardt on the poles (and the delay when fit_delay) with the
+// residues projected out; `delay_s` is the start (or fixed) delay.
+MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations, bool fit_delay = false,
+                     double delay_s = 0.0);
+
+// Score statistic of a delay at `delay_s`: 2 x the cost decrease that one
+// Gauss-Newton step in (poles, delay) predicts; chi^2 with 1 degree of
+// freedom (in units of the noise) when the delay is right.
+double delay_score(const FitData& data, const std::vector<cd>& poles, double delay_s);
 
 }  // namespace ambdiag::detail

@@ -1,7 +1,8 @@
 // Maximum-likelihood refinement of the common poles: Levenberg-Marquardt on
 // the weighted least-squares cost with the residues and direct terms
 // projected out (variable projection; Golub & Pereyra 1973, Jacobian after
-// Kaufman 1975).
+// Kaufman 1975). Optionally a pure delay e^{-j w tau} of the whole matrix
+// (an acquisition delay) as one more nonlinear parameter.
 #include <Eigen/Dense>
 #include <cmath>
 #include <limits>
@@ -15,6 +16,7 @@ namespace {
 int parameter_count(const std::vector<cd>& poles) { return basis_columns(poles); }
 
 std::vector<cd> apply_step(const std::vector<cd>& poles, const Eigen::VectorXd& step) {
+  // A trailing delay parameter, if any, is not a pole and is ignored here.
   std::vector<cd> out;
   int k = 0;
   for (const cd& p : poles) {
@@ -41,9 +43,12 @@ struct Normal {
   LinearSolution linear;
 };
 
-Normal normal_equations(const FitData& data, const std::vector<cd>& poles) {
+// `data` is already undelayed; with `delay` one more column, d resid / d tau
+// = -d y / d tau = -weighted(j w h).
+Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool delay = false) {
   const int L = data.lines(), E = data.entries();
-  const int np = parameter_count(poles);
+  const int npp = parameter_count(poles);
+  const int np = npp + (delay ? 1 : 0);
   const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
   const int nc = static_cast<int>(phi.cols());
   Normal out;
@@ -96,6 +101,11 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles) {
           col += 2;
         }
       }
+      if (delay) {
+        const cd dy = wt * j * data.w(l) * data.h(l, e);
+        dmat(l, npp) = -dy.real();
+        dmat(L + l, npp) = -dy.imag();
+      }
     }
     // Kaufman: J = P_perp D, with P_perp = I - Q Q^T.
     const Eigen::MatrixXd qtd = q.transpose() * dmat;
@@ -107,11 +117,13 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles) {
 
 }  // namespace
 
-MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations) {
+MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iterations, bool fit_delay, double delay_s) {
   MlSolution out;
   double mu = 1e-3;
-  Normal ne = normal_equations(data, poles);
+  FitData data = undelayed(data_in, delay_s);
+  Normal ne = normal_equations(data, poles, fit_delay);
   double cost = ne.linear.cost;
+  const int npp = parameter_count(poles);
   out.stop_reason = "iteration limit";
   int it = 0;
   for (; it < max_iterations; ++it) {
@@ -121,15 +133,19 @@ MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterati
       lhs.diagonal() += mu * ne.jtj.diagonal().cwiseMax(1e-300);
       const Eigen::VectorXd step = -lhs.ldlt().solve(ne.jtr);
       const std::vector<cd> trial = apply_step(poles, step);
+      const double trial_delay = fit_delay ? delay_s + step(npp) : delay_s;
       if (stable(trial) && step.allFinite()) {
-        const LinearSolution lin = solve_residues(data, trial);
+        FitData trial_data = fit_delay ? undelayed(data_in, trial_delay) : data;
+        const LinearSolution lin = solve_residues(trial_data, trial);
         if (lin.cost < cost) {
           const double drop = (cost - lin.cost) / std::max(cost, 1e-300);
           poles = trial;
+          delay_s = trial_delay;
+          data = std::move(trial_data);
           cost = lin.cost;
           mu = std::max(mu / 3.0, 1e-12);
           accepted = true;
-          ne = normal_equations(data, poles);
+          ne = normal_equations(data, poles, fit_delay);
           if (drop < 1e-10) {
             out.converged = true;
             out.stop_reason = "relative cost decrease below 1e-10";
@@ -151,9 +167,25 @@ MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterati
   }
   out.iterations = it;
   out.poles = poles;
+  out.delay_s = delay_s;
   out.linear = ne.linear;
-  Eigen::MatrixXd cov = ne.jtj.ldlt().solve(Eigen::MatrixXd::Identity(ne.jtj.rows(), ne.jtj.cols()));
-  out.pole_covariance = cov;
+  // Marginal covariance of the poles (the delay's uncertainty included).
+  const Eigen::MatrixXd cov = ne.jtj.ldlt().solve(Eigen::MatrixXd::Identity(ne.jtj.rows(), ne.jtj.cols()));
+  out.pole_covariance = cov.topLeftCorner(npp, npp);
+  if (fit_delay) out.delay_sd_s = std::sqrt(std::max(0.0, 0.5 * cov(npp, npp)));
+  return out;
+}
+
+double delay_score(const FitData& data, const std::vector<cd>& poles, double delay_s) {
+  const Normal ne = normal_equations(undelayed(data, delay_s), poles, true);
+  const Eigen::VectorXd step = ne.jtj.ldlt().solve(ne.jtr);
+  return 2.0 * ne.jtr.dot(step);
+}
+
+FitData undelayed(const FitData& data, double delay_s) {
+  FitData out = data;
+  if (delay_s == 0.0) return out;
+  for (int l = 0; l < data.lines(); ++l) out.h.row(l) *= std::polar(1.0, data.w(l) * delay_s);
   return out;
 }
 

@@ -18,8 +18,17 @@ namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 // An entry carries signal when its RMS exceeds this many noise RMS.
 constexpr double kMinEntrySnr = 3.0;
-// A pole is a physical mode when its resonance peak exceeds this many sigma.
-constexpr double kMinModeSnr = 5.0;
+// A delay is fitted when its score statistic (chi^2, 1 degree of freedom)
+// exceeds this: 5 standard deviations.
+constexpr double kMinDelayScore = 25.0;
+// Poles added after the order search where the residual shows structure,
+// and the significance (z of the residual chi^2 over a window) that
+// triggers it.
+constexpr int kMaxAddedPoles = 4;
+constexpr double kMinWindowZ = 6.0;
+// Above this chi^2 per degree of freedom the residual is not noise: sigma is
+// scaled up by the local residual and the order searched again.
+constexpr double kMaxConsistentChi2 = 1.3;
 
 int numerator_power(FrfQuantity q) {
   switch (q) {
@@ -86,43 +95,55 @@ Prepared prepare(const FrfData& frf, const RationalFitOptions& opt, int power) {
   return p;
 }
 
-// Principal responses of the weighted data (per-entry scalar weights) for
-// the order search: the poles are common, so a few dominant singular
-// directions carry them all at a fraction of the cost.
+// Principal responses of the weighted data for the order search: the poles
+// are common, so a few dominant singular directions carry them all at a
+// fraction of the cost. The weights are split as weight(l, e) ~ a(l) b(e)
+// (a rank-one fit): b(e) scales the entries before they are combined, a(l)
+// stays a line weight of the principal responses. Per-line weights matter:
+// an accelerance divided by w^2 spans decades, and a per-entry weight alone
+// would let the lowest lines dominate the search.
 FitData compress(const FitData& d, int max_responses, int max_lines) {
   const int L = d.lines(), E = d.entries();
-  Eigen::VectorXd w_entry(E);
-  for (int e = 0; e < E; ++e) w_entry(e) = std::sqrt(d.weight.col(e).array().square().mean());
-  const Eigen::MatrixXcd y = d.h * w_entry.asDiagonal();
+  Eigen::VectorXd b(E), a(L);
+  for (int e = 0; e < E; ++e) b(e) = std::sqrt(d.weight.col(e).array().square().mean());
+  for (int l = 0; l < L; ++l) a(l) = std::sqrt((d.weight.row(l).transpose().array() / b.array()).square().mean());
+  const Eigen::MatrixXcd y = d.h * b.asDiagonal();
   // Every `step`-th line: the order search needs the shape of the
   // response, not every line; the final fits use all of them.
   const int step = std::max(1, L / max_lines);
   const int lk = (L + step - 1) / step;
-  Eigen::VectorXd w(lk);
+  Eigen::VectorXd w(lk), wl(lk);
   Eigen::MatrixXcd ys(lk, E);
   for (int i = 0; i < lk; ++i) {
     w(i) = d.w(i * step);
+    wl(i) = a(i * step);
     ys.row(i) = y.row(i * step);
   }
-  if (E <= max_responses) {
-    FitData out{w, ys, Eigen::MatrixXd::Ones(lk, E)};
-    return out;
+  const int r = std::min(E, max_responses);
+  Eigen::MatrixXd v = Eigen::MatrixXd::Identity(E, E);
+  if (E > max_responses) {
+    // Real combinations only: a complex one would break the conjugate
+    // symmetry H(-jw) = conj H(jw) that the real pole-residue basis relies on.
+    const Eigen::MatrixXcd yw = wl.asDiagonal() * ys;
+    const Eigen::MatrixXd gram = yw.real().transpose() * yw.real() + yw.imag().transpose() * yw.imag();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(gram);
+    v = es.eigenvectors().rightCols(r);
   }
-  // Real combinations only: a complex one would break the conjugate symmetry
-  // H(-jw) = conj H(jw) that the real pole-residue basis relies on.
-  const Eigen::MatrixXd gram = (y.real().transpose() * y.real() + y.imag().transpose() * y.imag());
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(gram);
-  const int r = max_responses;
-  const Eigen::MatrixXd v = es.eigenvectors().rightCols(r);
-  FitData out{w, ys * v, Eigen::MatrixXd::Ones(lk, r)};
+  FitData out{w, ys * v, wl.replicate(1, r)};
   return out;
 }
 
-double criterion(double cost, int params, int n_real, bool sigma_given) {
-  // Bayesian information criterion: -2 log likelihood + p log N. With known
-  // sigma, -2 log L = 2 cost (re and im each carry sigma^2 / 2).
-  const double fit = sigma_given ? 2.0 * cost : n_real * std::log(std::max(cost, 1e-300) / n_real);
-  return fit + params * std::log(static_cast<double>(n_real));
+// Bayesian information criterion with the noise scale estimated from the
+// residual: n log(cost / n) + p log n. Where sigma is right and the model
+// complete (cost ~ n / 2) its differences between orders equal those of the
+// known-sigma form 2 cost + p log n; where model error dominates (real
+// data: the noise model is imperfect) a new pole pair must lower the cost by
+// a fraction, not by a number of sigma^2, which stops the order growing to
+// fit every systematic wiggle. The scale is floored at the given sigma
+// (cost / n >= 1/2): a fit below the noise is not rewarded.
+double criterion(double cost, int params, int n_real) {
+  const double scale = std::max(cost / n_real, 0.5);
+  return n_real * std::log(scale) + params * std::log(static_cast<double>(n_real));
 }
 
 // A lightly damped pole at the line where the fit with `poles` leaves the
@@ -173,6 +194,143 @@ std::vector<bool> stable_against(const std::vector<cd>& now, const std::vector<c
   return out;
 }
 
+// Order search on the principal responses, each order warm-started from
+// the previous one plus one new pair where the model misfits most; the
+// search stops 4 orders after the best criterion. Returns the best poles.
+std::vector<cd> search_order(const FitData& data, const RationalFitOptions& opt, RationalFitResult& out) {
+  const double w_min = data.w.minCoeff(), w_max = data.w.maxCoeff();
+  const FitData small = compress(data, 6, 400);
+  const int n_small = 2 * small.lines() * small.entries();
+  std::vector<cd> prev, poles;
+  out.stabilization.clear();
+  double best = std::numeric_limits<double>::infinity();
+  int since_best = 0;
+  for (int n = 1; n <= opt.max_modes; ++n) {
+    std::vector<cd> start = prev;
+    start.push_back(n == 1 ? detail::starting_poles(1, w_min, w_max)[0] : worst_fit_pole(small, prev));
+    while (detail::basis_columns(start) > 2 * n) start.erase(start.begin());
+    const std::vector<cd> p = detail::vector_fit(small, start, n == 1 ? opt.vf_iterations : 4);
+    const double cost = detail::solve_residues(small, p).cost;
+    StabilizationRow row;
+    row.modes = n;
+    row.poles = p;
+    row.stable = stable_against(p, prev);
+    row.chi2_per_dof = 2.0 * cost / std::max(1, n_small - model_parameters(p, small.entries()));
+    row.criterion = criterion(cost, model_parameters(p, small.entries()), n_small);
+    out.stabilization.push_back(row);
+    prev = p;
+    if (row.criterion < best) {
+      best = row.criterion;
+      out.selected_modes = n;
+      poles = p;
+      since_best = 0;
+    } else if (++since_best >= 4) {
+      break;
+    }
+  }
+  return poles;
+}
+
+// Orders of the stabilization diagram that hold a pole within 1 % in
+// frequency and 25 % in damping of p (the ML pole moves a little from the
+// search's).
+int orders_holding(const std::vector<StabilizationRow>& rows, cd p) {
+  const double f = std::abs(p), z = -p.real() / std::abs(p);
+  int n = 0;
+  for (const auto& row : rows) {
+    for (const cd& q : row.poles) {
+      if (q.imag() == 0.0) continue;
+      const double fq = std::abs(q), zq = -q.real() / std::abs(q);
+      if (std::abs(f - fq) < 0.01 * f && std::abs(z - zq) < 0.25 * z + 0.002) {
+        ++n;
+        break;
+      }
+    }
+  }
+  return n;
+}
+
+// Likelihood-ratio significance of pole k: the increase of the weighted
+// cost when it is removed and the residues of the others refitted, as a
+// chi^2 (2 x cost, re and im each carry half the variance). A pole that
+// fits noise, or one of two poles splitting one resonance (the other
+// absorbs it), costs little to remove; a mode seen weakly in many entries
+// costs a lot even when no single entry shows it clearly.
+double removal_chi2(const FitData& d, const std::vector<cd>& poles, size_t k, double cost) {
+  std::vector<cd> rest = poles;
+  rest.erase(rest.begin() + static_cast<long>(k));
+  return 2.0 * (detail::solve_residues(d, rest).cost - cost);
+}
+
+// Weighted squared residuals |w (H_model - H)|^2 (1 on average where sigma
+// is right), lines x entries.
+Eigen::MatrixXd residual2(const FitData& d, const detail::MlSolution& ml) {
+  const Eigen::MatrixXcd phi = detail::pole_basis(ml.poles, d.w, true);
+  Eigen::MatrixXd q(d.lines(), d.entries());
+  for (int e = 0; e < d.entries(); ++e) {
+    for (int l = 0; l < d.lines(); ++l) {
+      cd m = ml.linear.direct(e);
+      for (size_t k = 0; k < ml.poles.size(); ++k) {
+        const cd r = ml.linear.residues(e, static_cast<Eigen::Index>(k)), s(0.0, d.w(l));
+        m += r / (s - ml.poles[k]);
+        if (ml.poles[k].imag() != 0.0) m += std::conj(r) / (s - std::conj(ml.poles[k]));
+      }
+      q(l, e) = std::norm(d.weight(l, e) * (m - d.h(l, e)));
+    }
+  }
+  return q;
+}
+
+// Local residual scale per line: the mean squared weighted residual over
+// all entries and +-10 % in frequency (at least +-5 lines; wider than a
+// resonance, so that a mode the first fit missed is not down-weighted),
+// floored at 1.
+Eigen::VectorXd local_misfit(const FitData& d, const detail::MlSolution& ml) {
+  const Eigen::VectorXd per_line = residual2(d, ml).rowwise().mean();
+  const int L = d.lines();
+  Eigen::VectorXd c(L);
+  for (int l = 0; l < L; ++l) {
+    int lo = l, hi = l;
+    while (lo > 0 && (d.w(l) - d.w(lo - 1) <= 0.1 * d.w(l) || l - lo < 5)) --lo;
+    while (hi < L - 1 && (d.w(hi + 1) - d.w(l) <= 0.1 * d.w(l) || hi - l < 5)) ++hi;
+    c(l) = std::max(1.0, per_line.segment(lo, hi - lo + 1).mean());
+  }
+  return c;
+}
+
+// Centre (rad/s) of the window of +-1 % in frequency (at least +-2 lines)
+// where one entry's weighted residual is most significantly above the noise
+// (z of its chi^2 over the window above 6, the noise scaled by `scale2`);
+// 0 when there is none.
+double worst_window(const FitData& d, const detail::MlSolution& ml, double scale2) {
+  const int L = d.lines(), E = d.entries();
+  const Eigen::MatrixXd q = 2.0 * residual2(d, ml) / scale2;  // chi^2 per line (2 degrees of freedom)
+  double best_z = kMinWindowZ, best_w = 0.0;
+  for (int l = 0; l < L; ++l) {
+    int lo = l, hi = l;
+    while (lo > 0 && (d.w(l) - d.w(lo - 1) <= 0.01 * d.w(l) || l - lo < 2)) --lo;
+    while (hi < L - 1 && (d.w(hi + 1) - d.w(l) <= 0.01 * d.w(l) || hi - l < 2)) ++hi;
+    const int m = hi - lo + 1;
+    // Per entry, and over all entries (a mode seen weakly in many).
+    double all = 0.0;
+    for (int e = 0; e < E; ++e) {
+      const double sum = q.col(e).segment(lo, m).sum();
+      all += sum;
+      const double z = (sum - 2.0 * m) / (2.0 * std::sqrt(static_cast<double>(m)));
+      if (z > best_z) {
+        best_z = z;
+        best_w = d.w(l);
+      }
+    }
+    const double z_all = (all - 2.0 * m * E) / (2.0 * std::sqrt(static_cast<double>(m) * E));
+    if (z_all > best_z) {
+      best_z = z_all;
+      best_w = d.w(l);
+    }
+  }
+  return best_w;
+}
+
 }  // namespace
 
 std::complex<double> RationalModel::evaluate(int entry, double w) const {
@@ -183,7 +341,7 @@ std::complex<double> RationalModel::evaluate(int entry, double w) const {
     h += r / (s - poles[k]);
     if (poles[k].imag() != 0.0) h += std::conj(r) / (s - std::conj(poles[k]));
   }
-  return h;
+  return delay_s == 0.0 ? h : h * std::polar(1.0, -w * delay_s);
 }
 
 int RationalModel::pair_count() const {
@@ -212,7 +370,7 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
   RationalFitResult out;
   out.numerator_power = numerator_power(frf.quantity);
   const Prepared prep = prepare(frf, opt, out.numerator_power);
-  const FitData& data = prep.data;
+  FitData data = prep.data;  // weights may be lowered where model error dominates
   out.entries = prep.entries;
   const int n_real = 2 * data.lines() * data.entries();
   const double w_min = data.w.minCoeff(), w_max = data.w.maxCoeff();
@@ -222,62 +380,111 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
     poles = detail::vector_fit(data, detail::starting_poles(opt.modes, w_min, w_max), opt.vf_iterations);
     out.selected_modes = opt.modes;
   } else {
-    // Order search on the principal responses, each order warm-started
-    // from the previous one plus one new pair.
-    const FitData small = compress(data, 6, 400);
-    const int n_small = 2 * small.lines() * small.entries();
-    std::vector<cd> prev;
-    double best = std::numeric_limits<double>::infinity();
-    int since_best = 0;
-    for (int n = 1; n <= opt.max_modes; ++n) {
-      std::vector<cd> start = prev;
-      // The new pair goes where the current model misfits most.
-      start.push_back(n == 1 ? detail::starting_poles(1, w_min, w_max)[0] : worst_fit_pole(small, prev));
-      while (detail::basis_columns(start) > 2 * n) start.erase(start.begin());
-      const std::vector<cd> p = detail::vector_fit(small, start, n == 1 ? opt.vf_iterations : 4);
-      const double cost = detail::solve_residues(small, p).cost;
-      StabilizationRow row;
-      row.modes = n;
-      row.poles = p;
-      row.stable = stable_against(p, prev);
-      row.chi2_per_dof = 2.0 * cost / std::max(1, n_small - model_parameters(p, small.entries()));
-      row.criterion = criterion(cost, model_parameters(p, small.entries()), n_small, true);
-      out.stabilization.push_back(row);
-      prev = p;
-      if (row.criterion < best) {
-        best = row.criterion;
-        out.selected_modes = n;
-        poles = p;
-        since_best = 0;
-      } else if (++since_best >= 4) {
-        break;
-      }
-    }
+    poles = search_order(data, opt, out);
   }
   out.report.data_points = n_real;
   out.report.cost_start = detail::solve_residues(data, poles).cost;
 
-  detail::MlSolution ml;
-  if (opt.ml_refine && opt.ml_iterations > 0) {
-    ml = detail::ml_refine(data, poles, opt.ml_iterations);
-  } else {
-    ml = detail::ml_refine(data, poles, 0);
+  const int ml_iterations = opt.ml_refine ? opt.ml_iterations : 0;
+  detail::MlSolution ml = detail::ml_refine(data, poles, ml_iterations);
+  auto chi2 = [&](const detail::MlSolution& m) {
+    const int params = model_parameters(m.poles, data.entries()) + (m.delay_sd_s > 0 ? 1 : 0);
+    return 2.0 * m.linear.cost / std::max(1, n_real - params);
+  };
+  if (opt.estimate_delay && ml_iterations > 0) {
+    // A pure delay e^{-j w tau} (acquisition) is not rational: unmodelled,
+    // it is absorbed by spurious poles. Score test at tau = 0, in units of
+    // the robust noise scale; when significant, fit the delay, search the
+    // order again on the undelayed data and refine poles and delay jointly.
+    const double score = detail::delay_score(data, ml.poles, 0.0) / std::max(1.0, chi2(ml));
+    if (score > kMinDelayScore) {
+      const detail::MlSolution first = detail::ml_refine(data, ml.poles, ml_iterations, true, 0.0);
+      const std::vector<StabilizationRow> rows_without = out.stabilization;
+      const int selected_without = out.selected_modes;
+      std::vector<cd> p2 = first.poles;
+      if (opt.modes == 0) p2 = search_order(detail::undelayed(data, first.delay_s), opt, out);
+      detail::MlSolution with = detail::ml_refine(data, p2, ml_iterations, true, first.delay_s);
+      // Kept when better by the same criterion as the orders (the delay
+      // model may have fewer poles and a slightly higher cost).
+      const auto crit = [&](const detail::MlSolution& m, int extra) {
+        return criterion(m.linear.cost, model_parameters(m.poles, data.entries()) + extra, n_real);
+      };
+      if (crit(with, 1) < crit(ml, 0)) {
+        ml = std::move(with);
+      } else {
+        out.stabilization = rows_without;
+        out.selected_modes = selected_without;
+      }
+    }
+  }
+  if (opt.modes == 0 && ml_iterations > 0 && chi2(ml) > kMaxConsistentChi2) {
+    // The residual exceeds the noise: sigma is under-estimated or the data
+    // hold what no rational model of this order holds (real data). Left as
+    // is, the search spends its poles where the misfit is largest rather than
+    // on resonances. Scale sigma per line by the local residual (a floor of
+    // the noise from the fit itself) and search again.
+    const Eigen::VectorXd c = local_misfit(detail::undelayed(data, ml.delay_s), ml);
+    for (int l = 0; l < data.lines(); ++l) data.weight.row(l) /= std::sqrt(c(l));
+    out.report.sigma_inflated = true;
+    std::vector<cd> p2 = search_order(detail::undelayed(data, ml.delay_s), opt, out);
+    ml = detail::ml_refine(data, p2, ml_iterations, ml.delay_sd_s > 0, ml.delay_s);
+  }
+  if (opt.modes == 0 && ml_iterations > 0) {
+    // The order search sees principal responses only: a mode in few or
+    // weak entries (an axial mode, a weak mode next to a strong one) can be
+    // missed. Where an entry's residual is significantly above the noise over
+    // a resonance-wide window, add a pole there and keep it if the criterion
+    // improves.
+    const auto crit = [&](const detail::MlSolution& m) {
+      return criterion(m.linear.cost, model_parameters(m.poles, data.entries()) + (m.delay_sd_s > 0 ? 1 : 0), n_real);
+    };
+    for (int extra = 0; extra < kMaxAddedPoles; ++extra) {
+      const detail::FitData undelayed_data = detail::undelayed(data, ml.delay_s);
+      const double w_new = worst_window(undelayed_data, ml, std::max(1.0, chi2(ml)));
+      if (w_new <= 0.0) break;
+      std::vector<cd> trial = ml.poles;
+      trial.emplace_back(-0.02 * w_new, w_new);
+      detail::MlSolution more = detail::ml_refine(data, trial, ml_iterations, ml.delay_sd_s > 0, ml.delay_s);
+      if (!(crit(more) < crit(ml))) break;
+      ml = std::move(more);
+      ++out.selected_modes;
+    }
   }
   out.model.poles = ml.poles;
   out.model.residues = ml.linear.residues;
   out.model.direct = ml.linear.direct;
+  out.model.delay_s = ml.delay_s;
+  out.report.delay_s = ml.delay_s;
+  out.report.delay_sd_s = ml.delay_sd_s;
+  out.report.delay_fitted = ml.delay_sd_s > 0;
   out.report.cost = ml.linear.cost;
   out.report.ml_iterations = ml.iterations;
   out.report.converged = ml.converged || !opt.ml_refine;
   out.report.stop_reason = ml.stop_reason;
-  const int dof = std::max(1, n_real - out.model.real_parameter_count());
-  out.report.chi2_per_dof = 2.0 * ml.linear.cost / dof;
+  out.report.chi2_per_dof = chi2(ml);
   out.report.sigma_from_data = prep.sigma_given;
+  const FitData fitted = detail::undelayed(data, ml.delay_s);
 
   // Covariance of the pole parameters: Fisher information 2 J^T J (re and
   // im of each weighted residual have variance 1/2); without sigma, scale
   // by the residual variance.
   const double scale = 0.5 * (prep.sigma_given ? 1.0 : out.report.chi2_per_dof);
+  // Squared weighted residuals (1 on average where sigma is right), and per
+  // entry their robust scale: median / ln 2 (the median of an exponential
+  // variable of mean 1), insensitive to a few misfit regions.
+  const int E = data.entries();
+  Eigen::MatrixXd resid2(data.lines(), E);
+  for (int l = 0; l < data.lines(); ++l)
+    for (int e = 0; e < E; ++e)
+      resid2(l, e) = std::norm(fitted.weight(l, e) * (out.model.evaluate(e, fitted.w(l)) * std::polar(1.0, fitted.w(l) * ml.delay_s) - fitted.h(l, e)));
+  Eigen::VectorXd entry_scale2(E);
+  for (int e = 0; e < E; ++e) {
+    std::vector<double> v(resid2.col(e).data(), resid2.col(e).data() + data.lines());
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    entry_scale2(e) = v[v.size() / 2] / std::log(2.0);
+  }
+  const double line_spacing = (w_max - w_min) / std::max(1, data.lines() - 1);
+  const double noise_scale2 = prep.sigma_given ? std::max(1.0, out.report.chi2_per_dof) : out.report.chi2_per_dof;
   int col = 0;
   for (size_t k = 0; k < ml.poles.size(); ++k) {
     const cd p = ml.poles[k];
@@ -297,20 +504,39 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
     m.f_sd_hz = std::sqrt(std::max(0.0, gf.dot(cov * gf)));
     m.zeta_sd = std::sqrt(std::max(0.0, gz.dot(cov * gz)));
     col += 2;
-    // Peak of the mode's contribution over the noise, per entry.
+    // Peak of the mode's contribution over the noise, per entry, the noise
+    // scaled by the robust residual scale of that entry (model error counts
+    // as noise where it exceeds sigma).
     double total = 0.0;
-    m.entry_weight.resize(static_cast<size_t>(data.entries()));
+    m.entry_weight.resize(static_cast<size_t>(E));
     Eigen::Index nearest = 0;
     (data.w.array() - b).abs().minCoeff(&nearest);
-    for (int e = 0; e < data.entries(); ++e) {
+    const double half_band = std::max(std::abs(a), 2.0 * line_spacing);
+    for (int e = 0; e < E; ++e) {
       const double peak = std::abs(out.model.residues(e, static_cast<Eigen::Index>(k))) / std::abs(a);
+      double local = 0.0;
+      int n_local = 0;
+      for (int l = 0; l < data.lines(); ++l) {
+        if (std::abs(data.w(l) - b) > half_band) continue;
+        local += resid2(l, e);
+        ++n_local;
+      }
+      // Without sigma the residual is the only noise estimate (no floor).
+      const double floor2 = prep.sigma_given ? 1.0 : 1e-300;
+      const double scale2 = std::max({floor2, entry_scale2(e), n_local > 0 ? local / n_local : 0.0});
       m.entry_weight[static_cast<size_t>(e)] = peak * data.weight(nearest, e);
-      m.peak_snr = std::max(m.peak_snr, peak * data.weight(nearest, e) * (prep.sigma_given ? 1.0 : 1.0 / std::sqrt(out.report.chi2_per_dof)));
+      m.peak_snr = std::max(m.peak_snr, peak * data.weight(nearest, e) / std::sqrt(scale2));
       total += m.entry_weight[static_cast<size_t>(e)];
     }
     for (auto& wgt : m.entry_weight) wgt = total > 0 ? wgt / total : 0.0;
+    m.stable_orders = orders_holding(out.stabilization, p);
+    // Physical: in the band, and significant by the information criterion
+    // of the order search (its pole and residues must pay for themselves),
+    // the noise scaled by the residual where model error exceeds sigma.
     const bool in_band = b >= 0.9 * w_min && b <= 1.05 * w_max;
-    if (in_band && m.peak_snr >= kMinModeSnr && m.zeta < 1.0) out.modes.push_back(m);
+    if (!in_band || m.zeta >= 1.0) continue;
+    m.significance = removal_chi2(fitted, ml.poles, k, ml.linear.cost) / noise_scale2;
+    if (m.significance > (2.0 + 2.0 * E) * std::log(static_cast<double>(n_real))) out.modes.push_back(m);
   }
   std::sort(out.modes.begin(), out.modes.end(), [](const IdentifiedMode& x, const IdentifiedMode& y) { return x.f_hz < y.f_hz; });
   return out;

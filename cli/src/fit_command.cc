@@ -10,6 +10,7 @@
 #include "ambdiag/algorithms/mode_labels.h"
 #include "ambdiag/algorithms/modal_analysis.h"
 #include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"
@@ -26,7 +27,8 @@ using nlohmann::json;
 json identified_json(const ModeDescription& d, const std::vector<Mode>* model) {
   json j = {{"f_hz", d.mode.f_hz},       {"zeta", d.mode.zeta},       {"f_sd_hz", d.mode.f_sd_hz},
             {"zeta_sd", d.mode.zeta_sd}, {"direction", d.direction}, {"whirl", to_string(d.whirl)},
-            {"outputs", d.outputs},      {"inputs", d.inputs},       {"peak_snr", d.mode.peak_snr}};
+            {"outputs", d.outputs},      {"inputs", d.inputs},       {"peak_snr", d.mode.peak_snr},
+            {"stable_orders", d.mode.stable_orders}};
   if (!d.label.empty()) j["label"] = d.label;
   if (model && d.model_index >= 0) {
     const Mode& m = (*model)[static_cast<size_t>(d.model_index)];
@@ -115,7 +117,7 @@ void print_table(const ModePairing& pairing, const std::vector<Mode>* model) {
 }
 
 int run_fit(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--model", "--fmin", "--fmax", "--modes", "--max-modes", "--svg", "--speed"}, {"--json"});
+  const Args args(argv, {"--model", "--fmin", "--fmax", "--modes", "--max-modes", "--svg", "--speed"}, {"--json", "--no-delay"});
   args.expect_positional(1, "FRF.csv");
   const FrfData frf = read_frf_csv(args.positional()[0]);
   RationalFitOptions opt;
@@ -123,6 +125,7 @@ int run_fit(const std::vector<std::string>& argv) {
   opt.f_max_hz = args.number("--fmax").value_or(0.0);
   opt.modes = static_cast<int>(args.number("--modes").value_or(0));
   opt.max_modes = static_cast<int>(args.number("--max-modes").value_or(opt.max_modes));
+  opt.estimate_delay = !args.flag("--no-delay");
   std::string why;
   if (!opt.is_valid(&why)) throw UsageError(why);
 
@@ -130,7 +133,18 @@ int run_fit(const std::vector<std::string>& argv) {
   if (auto m = args.option("--model")) plant = read_plant_file(*m);
 
   std::fprintf(stderr, "fit: %zu entries, %zu lines ...\n", frf.entries.size(), frf.freq_hz.size());
-  const RationalFitResult fit = fit_rational(frf, opt);
+  RationalFitResult fit;
+  try {
+    fit = fit_rational(frf, opt);
+  } catch (const InputError& e) {
+    rethrow_with_context(e, args.positional()[0]);
+  }
+  if (fit.modes.empty())
+    std::fprintf(stderr, "warning: %s: no mode rises above the noise (chi2/dof %.3g of the %d-pole-pair model)\n",
+                 args.positional()[0].c_str(), fit.report.chi2_per_dof, fit.model.pair_count());
+  if (fit.report.delay_fitted)
+    std::fprintf(stderr, "fit: a pure delay of %.3g us (sd %.2g us) is fitted as e^(-j w tau)\n", 1e6 * fit.report.delay_s,
+                 1e6 * fit.report.delay_sd_s);
 
   std::vector<ModeDescription> described;
   for (const auto& m : fit.modes) described.push_back(describe_mode(m, fit, frf, plant ? &*plant : nullptr));
@@ -158,7 +172,10 @@ int run_fit(const std::vector<std::string>& argv) {
                   {"stop_reason", fit.report.stop_reason},
                   {"ml_iterations", fit.report.ml_iterations},
                   {"entries_fitted", fit.entries.size()},
-                  {"sigma_from_data", fit.report.sigma_from_data}}}};
+                  {"sigma_from_data", fit.report.sigma_from_data},
+                  {"delay_fitted", fit.report.delay_fitted},
+                  {"delay_s", fit.report.delay_s},
+                  {"delay_sd_s", fit.report.delay_sd_s}}}};
     for (const auto& d : pairing.identified) out["modes"].push_back(identified_json(d, plant ? &model_modes : nullptr));
     if (plant) {
       out["unmatched_model_modes"] = json::array();
@@ -180,6 +197,8 @@ int run_fit(const std::vector<std::string>& argv) {
   }
   std::printf("%zu modes identified (%d pole pairs, order %d, chi2/dof %.3f%s)\n", fit.modes.size(), fit.model.pair_count(),
               order, fit.report.chi2_per_dof, fit.report.sigma_from_data ? "" : ", no sigma in the file");
+  if (fit.report.delay_fitted)
+    std::printf("pure delay fitted: %.3f us (sd %.3f us)\n", 1e6 * fit.report.delay_s, 1e6 * fit.report.delay_sd_s);
   print_table(pairing, plant ? &model_modes : nullptr);
   return kExitOk;
 }
@@ -190,13 +209,15 @@ std::vector<Command> fit_commands() {
   return {{{"fit"},
            "identified modal parameters of an FRF matrix",
            "usage: ambdiag fit FRF.csv [--model PLANT.json] [--json] [--fmin HZ] [--fmax HZ]\n"
-           "                  [--modes N | --max-modes N] [--svg STABILIZATION.svg] [--speed RPM]\n\n"
+           "                  [--modes N | --max-modes N] [--svg STABILIZATION.svg] [--speed RPM] [--no-delay]\n\n"
            "Fits one rational model with common poles to every FRF entry that carries signal\n"
            "(vector fitting, then maximum likelihood weighted by the sigma_ columns), chooses the\n"
            "order automatically (BIC) unless --modes is given, and reports natural frequency,\n"
            "damping ratio, their standard deviations, direction, whirl and which sensors and\n"
            "actuators see each mode. With --model, modes are paired with the plant model's modes\n"
-           "(at the file's speed_rpm) in the layout of Nordmann & Aenis' Table 3.\n",
+           "(at the file's speed_rpm) in the layout of Nordmann & Aenis' Table 3.\n"
+           "A pure delay e^(-j w tau) of the whole matrix (acquisition delay) is fitted and reported\n"
+           "when the data show one (--no-delay: never). No mode above the noise: exit 0, warning.\n",
            run_fit}};
 }
 

@@ -31,6 +31,7 @@ struct RationalModel {
   std::vector<std::complex<double>> poles;  // rad/s; Im > 0 for a conjugate pair, Im == 0 for a real pole
   Eigen::MatrixXcd residues;                // entries x poles
   Eigen::VectorXd direct;                   // entries
+  double delay_s = 0.0;                     // pure delay: every entry times e^{-j w delay_s}
   std::complex<double> evaluate(int entry, double w_rad_per_s) const;
   int pair_count() const;
   int real_parameter_count() const;  // poles + residues + direct terms
@@ -44,6 +45,10 @@ struct RationalFitOptions {
   int vf_iterations = 12;
   int ml_iterations = 40;
   bool ml_refine = true;
+  // Fit a pure delay e^{-j w tau} of the whole matrix (acquisition delay)
+  // when a score test at tau = 0 finds one (5 sigma); it is not rational and
+  // would otherwise be absorbed by spurious poles.
+  bool estimate_delay = true;
   // Whether IsValid; message names the option.
   bool is_valid(std::string* error) const;
 };
@@ -64,7 +69,10 @@ struct IdentifiedMode {
   double zeta_sd = 0.0;
   std::complex<double> pole;
   int pole_index = -1;               // into RationalModel::poles
-  double peak_snr = 0.0;             // largest |residue contribution| at resonance over sigma
+  double peak_snr = 0.0;             // largest |residue contribution| at resonance over the noise
+                                     // (sigma, or the residual's robust scale where larger)
+  double significance = 0.0;         // chi^2 increase (noise units) when the pole is removed
+  int stable_orders = 0;             // orders of the stabilization diagram holding this pole
   std::vector<double> entry_weight;  // per entry: share of the mode's contribution (0..1)
 };
 
@@ -77,6 +85,10 @@ struct RationalFitReport {
   double chi2_per_dof = 0.0;
   bool sigma_from_data = true;  // false: sigma estimated from the residual
   int data_points = 0;          // real data values used
+  bool sigma_inflated = false;  // sigma scaled up by the local residual (model error above the noise)
+  bool delay_fitted = false;    // a delay was found significant and fitted
+  double delay_s = 0.0;         // fitted delay (0 when not fitted)
+  double delay_sd_s = 0.0;
 };
 
 struct RationalFitResult {

@@ -1,0 +1,59 @@
+// Shared by the rational-fit accuracy tests: every truth mode with damping
+// below 20 % of a shared FRF file (truth.json `truth_modes`) must be
+// identified within 0.5 % in frequency and 10 % (relative) in damping.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/core/frf_data.h"
+#include "test_support.h"
+
+namespace ambdiag::truth_modes {
+
+// Fits `frf_rel` (relative to ../shared/data) with the default options and
+// checks it against `truth_rel`; prints one table row per truth mode.
+inline RationalFitResult expect_truth_modes_identified(const std::string& frf_rel, const std::string& truth_rel) {
+  const FrfData frf = read_frf_csv(testing::data_file(frf_rel).string());
+  std::ifstream in(testing::data_file(truth_rel));
+  const nlohmann::json truth = nlohmann::json::parse(in);
+  const RationalFitResult fit = fit_rational(frf);
+  std::vector<int> claimed(fit.modes.size(), -1);  // truth mode that claimed each identified mode
+  const auto& modes = truth["truth_modes"];
+  for (size_t t = 0; t < modes.size(); ++t) {
+    const double f0 = modes[t]["f_hz"].get<double>(), z0 = modes[t]["zeta"].get<double>();
+    if (z0 >= 0.2) continue;
+    const std::string name = modes[t]["label"].get<std::string>() + (modes[t]["whirl"].is_string() ? " " + modes[t]["whirl"].get<std::string>() : "");
+    int best = -1;
+    for (size_t k = 0; k < fit.modes.size(); ++k)
+      if (best < 0 || std::abs(fit.modes[k].f_hz - f0) < std::abs(fit.modes[static_cast<size_t>(best)].f_hz - f0)) best = static_cast<int>(k);
+    if (best < 0) {
+      ADD_FAILURE() << frf_rel << ": no mode identified";
+      return fit;
+    }
+    const IdentifiedMode& m = fit.modes[static_cast<size_t>(best)];
+    const double ef = 100.0 * (m.f_hz - f0) / f0, ez = 100.0 * (m.zeta - z0) / z0;
+    const bool pass = std::abs(ef) < 0.5 && std::abs(ez) < 10.0;
+    std::printf("| %s | %s | %.2f | %.4f | %+.3f | %+.2f | %s |\n", frf_rel.c_str(), name.c_str(), f0, z0, ef, ez, pass ? "pass" : "FAIL");
+    EXPECT_TRUE(pass) << frf_rel << " " << name << ": f " << m.f_hz << " vs " << f0 << ", zeta " << m.zeta << " vs " << z0;
+    // One identified mode per truth mode, unless two truth modes coincide
+    // (a repeated root, e.g. two identical housing modes, is one pole).
+    int& owner = claimed[static_cast<size_t>(best)];
+    if (owner >= 0) {
+      const double fo = modes[static_cast<size_t>(owner)]["f_hz"].get<double>(), zo = modes[static_cast<size_t>(owner)]["zeta"].get<double>();
+      EXPECT_TRUE(std::abs(fo - f0) < 0.005 * f0 && std::abs(zo - z0) < 0.1 * z0)
+          << frf_rel << ": " << name << " and truth mode " << owner << " merged into one identified mode at " << m.f_hz << " Hz";
+    }
+    owner = static_cast<int>(t);
+  }
+  return fit;
+}
+
+}  // namespace ambdiag::truth_modes
