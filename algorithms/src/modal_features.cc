@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "ambdiag/algorithms/chi_square.h"
 #include "ambdiag/algorithms/mode_labels.h"
@@ -88,17 +89,22 @@ ModalFeatureTest modal_feature_test(const ModalFeatureReference& ref, const FrfD
                                     const RationalFitOptions& fit) {
   const std::vector<Found> ids = identify(measured, fit);
   ModalFeatureTest t;
-  std::vector<bool> used(ids.size(), false);
+  std::vector<bool> used(ids.size(), false), paired(ref.modes.size(), false);
   const double n = ref.runs;
-  for (size_t k = 0; k < ref.modes.size(); ++k) {
-    const ModalFeatureStats& m = ref.modes[k];
-    const int i = closest(ids, m.f_hz, m.direction, used);
-    if (i < 0) {
-      t.missing.push_back(static_cast<int>(k));
-      continue;
+  // A fault moves modes by far more than the 5 % that pairs healthy runs:
+  // pair globally, closest first, same direction, within 30 %.
+  std::vector<std::tuple<double, size_t, size_t>> pairs;
+  for (size_t k = 0; k < ref.modes.size(); ++k)
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const double d = std::fabs(ids[i].f - ref.modes[k].f_hz) / ref.modes[k].f_hz;
+      if (ids[i].direction == ref.modes[k].direction && d < 0.3) pairs.emplace_back(d, k, i);
     }
-    used[static_cast<size_t>(i)] = true;
-    const Found& x = ids[static_cast<size_t>(i)];
+  std::sort(pairs.begin(), pairs.end());
+  for (const auto& [d, k, i] : pairs) {
+    if (paired[k] || used[i]) continue;
+    paired[k] = used[i] = true;
+    const ModalFeatureStats& m = ref.modes[k];
+    const Found& x = ids[i];
     ModalFeatureShift s{static_cast<int>(k), x.f, x.zeta, 0.0, 0.0};
     s.z_f = (x.f - m.f_hz) / std::sqrt(m.f_kappa * x.f_sd * x.f_sd + m.f_var / n);
     s.z_zeta = (x.zeta - m.zeta) / std::sqrt(m.zeta_kappa * x.zeta_sd * x.zeta_sd + m.zeta_var / n);
@@ -106,6 +112,8 @@ ModalFeatureTest modal_feature_test(const ModalFeatureReference& ref, const FrfD
     t.dof += 2.0;
     t.shifts.push_back(s);
   }
+  for (size_t k = 0; k < ref.modes.size(); ++k)
+    if (!paired[k]) t.missing.push_back(static_cast<int>(k));
   for (size_t i = 0; i < ids.size(); ++i)
     if (!used[i]) t.shifts.push_back({-1, ids[i].f, ids[i].zeta, 0.0, 0.0});
   if (t.dof > 0.0) {

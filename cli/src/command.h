@@ -24,6 +24,7 @@ std::vector<Command> model_commands();
 std::vector<Command> convert_commands();
 std::vector<Command> estimate_commands();
 std::vector<Command> fit_commands();
+std::vector<Command> diagnose_commands();
 
 // Writes progress "label: done/total" on stderr, at most every 200 ms and at
 // the end; silent when stderr is not a terminal unless forced by

@@ -17,7 +17,8 @@ using ambdiag::cli::Command;
 std::vector<Command> all_commands() {
   std::vector<Command> all;
   for (auto&& family : {ambdiag::cli::model_commands(), ambdiag::cli::convert_commands(),
-                       ambdiag::cli::fit_commands(), ambdiag::cli::estimate_commands()})
+                       ambdiag::cli::fit_commands(), ambdiag::cli::estimate_commands(),
+                       ambdiag::cli::diagnose_commands()})
     all.insert(all.end(), family.begin(), family.end());
   return all;
 }

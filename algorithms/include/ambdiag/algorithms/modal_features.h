@@ -1,7 +1,9 @@
 // Modal features as symptoms (the paper's Table 4): natural frequencies and
 // damping ratios identified from each reference run (rational_fit.h),
-// paired across runs, their mean and variance, and the normalised shift of
-// a measured run's modes.
+// paired across runs (same direction, nearest within 5 %), their mean and
+// variance, and the normalised shift of a measured run's modes (paired
+// globally, closest first, within 30 %: a fault moves modes far more than
+// run-to-run scatter does).
 //
 // Variance of a feature: the identification's own standard deviation (ML,
 // from thousands of lines, well determined) scaled to the between-run
