@@ -27,6 +27,7 @@ std::vector<Command> fit_commands();
 std::vector<Command> serve_commands();
 std::vector<Command> db_commands();
 std::vector<Command> explain_commands();
+std::vector<Command> diagnose_commands();
 
 // Writes progress "label: done/total" on stderr, at most every 200 ms and at
 // the end; silent when stderr is not a terminal unless forced by
