@@ -26,6 +26,10 @@ echo
 echo "== identified modes of a measurement, labelled against the model (ambdiag fit; Table 3 layout)"
 "$bin" fit "$data/reference_pump/frf_ref_1.csv" --model "$plant" --svg "$out/stabilization.svg"
 echo
+echo "== diagnosis of a measurement against five healthy references (ambdiag diagnose; the paper's dry run)"
+"$bin" diagnose --model "$plant" --reference "$data"/reference_pump/frf_ref_{1,2,3,4,5}.csv \
+  --measured "$data/fault_dry_run/frf.csv" --svg "$out/diagnosis_dry_run.svg"
+echo
 echo "== export to Universal File Format 58 (ambdiag convert)"
 "$bin" convert "$out/model_frf.csv" "$out/model_frf.uff"
 echo
