@@ -7,6 +7,7 @@
 
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
+#include "frf_pole_sum.h"
 
 namespace ambdiag::detail {
 
@@ -30,44 +31,24 @@ Eigen::MatrixXcd lateral_frf_modal(const RotorSystem& sys, const LateralMaps& ma
   const Eigen::VectorXcd lam = es.eigenvalues();
   // The real pseudo-eigenvector matrix P (A P = P D, D with 2 x 2 blocks for
   // complex pairs) spans the same modes as the complex eigenvectors, and a
-  // real LU of it costs a quarter of a complex one. For a pair at columns
-  // (i, i+1), v_i = P_i + j P_i+1, v_i+1 = conj(v_i); if P y = b then the
-  // coefficient of v_i in b is (y_i - j y_i+1) / 2 and of v_i+1 its conjugate.
+  // real LU of it costs a quarter of a complex one; the sum over the poles
+  // stays real too (frf_pole_sum.h).
   const Eigen::MatrixXd& pv = es.pseudoEigenvectors();
   Eigen::MatrixXd bs = Eigen::MatrixXd::Zero(2 * n, n_in);  // state input [0; M^-1 B]
   bs.bottomRows(n) = Eigen::MatrixXd(sys.m).ldlt().solve(maps.b_in) / s;
   const Eigen::MatrixXd y = pv.partialPivLu().solve(bs);
-  const Eigen::MatrixXd cp = maps.c_out * pv.topRows(n);  // outputs x states
+  const PoleSum sum(lam, maps.c_out * pv.topRows(n), y);
   const Eigen::Index ns = 2 * n;
-  Eigen::MatrixXcd p(n_out, ns), q(ns, n_in);
-  for (Eigen::Index i = 0; i < ns; ++i) {
-    if (lam(i).imag() == 0.0 || i + 1 == ns) {
-      p.col(i) = cp.col(i).cast<cd>();
-      q.row(i) = y.row(i).cast<cd>();
-      continue;
-    }
-    p.col(i) = cp.col(i).cast<cd>() + cd(0.0, 1.0) * cp.col(i + 1).cast<cd>();
-    p.col(i + 1) = p.col(i).conjugate();
-    q.row(i) = 0.5 * (y.row(i).cast<cd>() - cd(0.0, 1.0) * y.row(i + 1).cast<cd>());
-    q.row(i + 1) = q.row(i).conjugate();
-    ++i;
-  }
-  // Residue of each mode for every entry: k(i, o * n_in + j) = p(o, i) q(i, j).
-  Eigen::MatrixXcd k(ns, n_out * n_in);
-  for (Eigen::Index o = 0; o < n_out; ++o) k.middleCols(o * n_in, n_in) = p.row(o).transpose().asDiagonal() * q;
   report.poles = static_cast<int>(ns);
   for (Eigen::Index i = 0; i < ns; ++i) report.poles_in_band += std::abs(lam(i)) <= w.back() ? 1 : 0;
   report.setup_s = seconds_since(t0);
 
-  // H = G K with G(line, i) = 1 / (j w - lambda_i): one matrix product.
+  // H(s) = Cout P (s I - D)^-1 P^-1 B_s: alpha = j w, beta = 1.
   const double t1 = now_s();
   const Eigen::Index lines = static_cast<Eigen::Index>(w.size());
-  Eigen::MatrixXcd g(lines, ns);
   Eigen::VectorXcd jw(lines);
   for (Eigen::Index l = 0; l < lines; ++l) jw(l) = cd(0.0, w[static_cast<size_t>(l)]);
-  for (Eigen::Index i = 0; i < ns; ++i) g.col(i) = (jw.array() - lam(i)).inverse();
-  Eigen::MatrixXcd h(lines, n_out * n_in);
-  h.noalias() = g * k;
+  const Eigen::MatrixXcd h = sum.evaluate(jw, Eigen::VectorXcd::Ones(lines));
   report.lines_s = seconds_since(t1);
   return h;
 }

@@ -51,15 +51,23 @@ FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vec
   const detail::LateralMaps maps = detail::lateral_maps(plant, sys);
   rep.assembly_s = detail::seconds_since(t0);
   constexpr int kAllModesMaxStates = 400;
-  const bool krylov = options.modal_basis == ModalBasis::krylov ||
-                      (options.modal_basis == ModalBasis::automatic && 2 * sys.size() > kAllModesMaxStates);
   Eigen::MatrixXcd lat;
   if (options.method == FrfMethod::direct) {
     lat = detail::lateral_frf_direct(sys, maps, w, rep);
-  } else if (krylov) {
-    lat = detail::lateral_frf_modal_krylov(sys, maps, w, options.krylov_tol, rep);
-  } else {
+  } else if (options.modal_basis == ModalBasis::all) {
     lat = detail::lateral_frf_modal(sys, maps, w, rep);
+  } else {
+    lat = detail::lateral_frf_modal_krylov(sys, maps, w, options.krylov_tol, rep);
+    if (!rep.converged && options.modal_basis == ModalBasis::automatic && 2 * sys.size() <= kAllModesMaxStates) {
+      // A small system whose Krylov basis fell short: every eigenvalue.
+      FrfReport all;
+      all.damping_modes_per_plane = rep.damping_modes_per_plane;
+      all.damping_cutoff_hz = rep.damping_cutoff_hz;
+      all.assembly_s = rep.assembly_s;
+      lat = detail::lateral_frf_modal(sys, maps, w, all);
+      all.setup_s += rep.setup_s + rep.lines_s;  // the Krylov attempt
+      rep = all;
+    }
   }
 
   FrfData out;
@@ -81,11 +89,10 @@ FrfData synthesize_frf(const PlantModel& plant, double speed_rpm, const std::vec
       FrfEntry e;
       e.output = plant.sensors[o].name;
       e.input = plant.actuators[i].name;
-      e.h.resize(freq_hz.size());
-      for (size_t line = 0; line < freq_hz.size(); ++line) {
-        std::complex<double> v = detail::parallel_compliance(plant, plant.sensors[o], plant.actuators[i], w[line]);
-        if (lat_out[o] >= 0 && lat_in[i] >= 0) v += lat(static_cast<Eigen::Index>(line), lat_out[o] * n_in_lat + lat_in[i]);
-        e.h[line] = v;
+      e.h = detail::parallel_compliances(plant, plant.sensors[o], plant.actuators[i], w);
+      if (lat_out[o] >= 0 && lat_in[i] >= 0) {
+        const auto col = lat.col(lat_out[o] * n_in_lat + lat_in[i]);
+        for (size_t line = 0; line < freq_hz.size(); ++line) e.h[line] += col(static_cast<Eigen::Index>(line));
       }
       out.entries.push_back(std::move(e));
     }

@@ -1,5 +1,8 @@
 #include "frf_terms.h"
 
+#include <algorithm>
+#include <string>
+
 namespace ambdiag::detail {
 
 namespace {
@@ -33,27 +36,43 @@ LateralMaps lateral_maps(const PlantModel& plant, const RotorSystem& sys) {
   return maps;
 }
 
-std::complex<double> parallel_compliance(const PlantModel& plant, const MeasurementPoint& s, const MeasurementPoint& a,
-                                         double w) {
-  std::complex<double> h = 0.0;
-  if (s.is_axial() != a.is_axial()) return h;
+namespace {
+
+// The single-DOF systems (m, k, c) in parallel between s and a.
+struct Sdof {
+  double m_kg, k_n_per_m, c_ns_per_m;
+};
+
+std::vector<Sdof> parallel_sdofs(const PlantModel& plant, const MeasurementPoint& s, const MeasurementPoint& a) {
+  std::vector<Sdof> out;
+  auto housing = [&](double m_kg, double f_hz, double zeta) {
+    const double w0 = 2.0 * M_PI * f_hz;
+    out.push_back({m_kg, m_kg * w0 * w0, 2.0 * zeta * w0 * m_kg});
+  };
+  if (s.is_axial() != a.is_axial()) return out;
   if (s.is_axial()) {
     const AxialModel& ax = *plant.axial;
-    h += sdof_compliance(ax.m_kg.value_or(plant.rotor_mass_kg()), ax.k_n_per_m, ax.c_ns_per_m, w);
-    for (const auto& hs : ax.housings) {
-      const double w0 = 2.0 * M_PI * hs.f_hz;
-      h += sdof_compliance(hs.m_kg, hs.m_kg * w0 * w0, 2.0 * hs.zeta * w0 * hs.m_kg, w);
-    }
-    return h;
+    out.push_back({ax.m_kg.value_or(plant.rotor_mass_kg()), ax.k_n_per_m, ax.c_ns_per_m});
+    for (const auto& hs : ax.housings) housing(hs.m_kg, hs.f_hz, hs.zeta);
+    return out;
   }
-  if (s.plane != a.plane || s.dir != a.dir) return h;
+  if (s.plane != a.plane || s.dir != a.dir) return out;
   const std::string dir(1, s.dir);
   for (const auto& hs : plant.housings) {
     if (hs.plane != s.plane) continue;
     if (std::find(hs.dirs.begin(), hs.dirs.end(), dir) == hs.dirs.end()) continue;
-    const double w0 = 2.0 * M_PI * hs.f_hz;
-    h += sdof_compliance(hs.m_kg, hs.m_kg * w0 * w0, 2.0 * hs.zeta * w0 * hs.m_kg, w);
+    housing(hs.m_kg, hs.f_hz, hs.zeta);
   }
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::complex<double>> parallel_compliances(const PlantModel& plant, const MeasurementPoint& s,
+                                                       const MeasurementPoint& a, const std::vector<double>& w) {
+  std::vector<std::complex<double>> h(w.size(), 0.0);
+  for (const Sdof& d : parallel_sdofs(plant, s, a))
+    for (size_t l = 0; l < w.size(); ++l) h[l] += sdof_compliance(d.m_kg, d.k_n_per_m, d.c_ns_per_m, w[l]);
   return h;
 }
 

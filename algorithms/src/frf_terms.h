@@ -23,8 +23,10 @@ struct LateralMaps {
 LateralMaps lateral_maps(const PlantModel& plant, const RotorSystem& sys);
 
 // Compliance that acts in parallel with the rotor between sensor s and
-// actuator a (housings; the whole axial model for axial pairs), m/N.
-std::complex<double> parallel_compliance(const PlantModel& plant, const MeasurementPoint& s,
-                                         const MeasurementPoint& a, double omega_rad_per_s);
+// actuator a (housings; the whole axial model for axial pairs), m/N, on
+// every line of omega_rad_per_s.
+std::vector<std::complex<double>> parallel_compliances(const PlantModel& plant, const MeasurementPoint& s,
+                                                       const MeasurementPoint& a,
+                                                       const std::vector<double>& omega_rad_per_s);
 
 }  // namespace ambdiag::detail

@@ -103,9 +103,12 @@ std::vector<std::vector<std::complex<double>>> PlantFrfEvaluator::model_h(const 
       throw InputError("measured entry " + me.output + "/" + me.input + ": axial entry but the plant model has no axial model");
     auto& h = out[e];
     h.resize(lines.size());
+    std::vector<double> omega(lines.size());
+    for (size_t k = 0; k < lines.size(); ++k) omega[k] = 2.0 * M_PI * measured_.freq_hz[static_cast<size_t>(lines[k])];
+    const std::vector<std::complex<double>> parallel = detail::parallel_compliances(p, *s, *a, omega);
     for (size_t k = 0; k < lines.size(); ++k) {
-      const double w = 2.0 * M_PI * measured_.freq_hz[static_cast<size_t>(lines[k])];
-      std::complex<double> v0 = detail::parallel_compliance(p, *s, *a, w);
+      const double w = omega[k];
+      std::complex<double> v0 = parallel[k];
       if (!lat[e].empty()) v0 += lat[e][k];
       if (v.delay_s != 0.0) v0 *= std::polar(1.0, -w * v.delay_s);
       h[k] = v0;

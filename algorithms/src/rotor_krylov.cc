@@ -10,6 +10,7 @@
 
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
+#include "frf_pole_sum.h"
 
 namespace ambdiag::detail {
 
@@ -21,6 +22,9 @@ using cd = std::complex<double>;
 // shift is tried.
 constexpr double kMinRcond = 1e-14;
 constexpr double kGoldenRatio = 1.618033988749895;
+// Up to this many DOFs P(sigma) is factorized dense (an 88-DOF pump with
+// structural damping of rank 84: Woodbury would cost more than the LU).
+constexpr Eigen::Index kDenseMaxDofs = 200;
 
 Eigen::MatrixXd random_block(Eigen::Index rows, Eigen::Index cols, unsigned seed) {
   std::mt19937 rng(seed);
@@ -67,10 +71,6 @@ Ritz ritz_pairs(const BlockArnoldi& a) {
 ShiftInvert::ShiftInvert(const RotorSystem& sys, double sigma, double scale)
     : sys_(sys), n_(sys.size()), sigma_(sigma), scale_(scale) {
   if (sigma == 0.0 || !(scale > 0.0)) throw std::logic_error("ShiftInvert: sigma must be nonzero and scale > 0");
-  KluReal::Matrix p0 = sys.k + sigma * sys.c + (sigma * sigma) * sys.m;
-  p0.makeCompressed();
-  lu_ = std::make_unique<KluReal>(p0);
-  if (lu_->rcond() < kMinRcond) return;
   std::vector<Eigen::Index> keep;
   for (Eigen::Index i = 0; i < sys.damping_d.size(); ++i)
     if (sys.damping_d(i) > 0.0) keep.push_back(i);
@@ -81,6 +81,24 @@ ShiftInvert::ShiftInvert(const RotorSystem& sys, double sigma, double scale)
     u_.col(i) = sys.damping_u.col(keep[static_cast<size_t>(i)]);
     d_(i) = sys.damping_d(keep[static_cast<size_t>(i)]);
   }
+  if (n_ <= kDenseMaxDofs) {
+    // Small system: C_t dense, P(sigma) by a dense LU (cheaper than KLU
+    // plus a Woodbury update of rank up to n).
+    dense_ = true;
+    Eigen::MatrixXd ct = Eigen::MatrixXd(sys.c);
+    if (r > 0) ct.noalias() += u_ * d_.asDiagonal() * u_.transpose();
+    const Eigen::MatrixXd m = Eigen::MatrixXd(sys.m);
+    dense_lu_.compute(Eigen::MatrixXd(sys.k) + sigma * ct + (sigma * sigma) * m);
+    ct_sigma_m_ = ct + sigma * m;
+    // Reciprocal pivot ratio, as KLU's rcond.
+    const Eigen::VectorXd piv = dense_lu_.matrixLU().diagonal().cwiseAbs();
+    ok_ = n_ > 0 && piv.minCoeff() >= kMinRcond * piv.maxCoeff();
+    return;
+  }
+  KluReal::Matrix p0 = sys.k + sigma * sys.c + (sigma * sigma) * sys.m;
+  p0.makeCompressed();
+  lu_ = std::make_unique<KluReal>(p0);
+  if (lu_->rcond() < kMinRcond) return;
   if (r > 0) {
     // Woodbury: P = P0 + U (sigma D) U^T.
     p0u_ = u_;
@@ -94,6 +112,7 @@ ShiftInvert::ShiftInvert(const RotorSystem& sys, double sigma, double scale)
 }
 
 Eigen::MatrixXd ShiftInvert::solve(Eigen::MatrixXd rhs) const {
+  if (dense_) return dense_lu_.solve(rhs);
   lu_->solve_in_place(rhs);
   if (u_.cols() > 0) rhs.noalias() -= p0u_ * capacitance_.solve(Eigen::MatrixXd(u_.transpose() * rhs));
   return rhs;
@@ -107,7 +126,12 @@ Eigen::MatrixXd ShiftInvert::damping_times(const Eigen::MatrixXd& x) const {
 
 Eigen::MatrixXd ShiftInvert::apply(const Eigen::MatrixXd& x) const {
   const Eigen::MatrixXd b1 = x.topRows(n_), b2 = x.bottomRows(n_);
-  const Eigen::MatrixXd rhs = -scale_ * (sys_.m * b2) - damping_times(b1) - sigma_ * (sys_.m * b1);
+  Eigen::MatrixXd rhs = -scale_ * (sys_.m * b2);
+  if (dense_) {
+    rhs.noalias() -= ct_sigma_m_ * b1;
+  } else {
+    rhs -= damping_times(b1) + sigma_ * (sys_.m * b1);
+  }
   const Eigen::MatrixXd x1 = solve(rhs);
   Eigen::MatrixXd y(2 * n_, x.cols());
   y.topRows(n_) = x1;
@@ -247,8 +271,7 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
   const Eigen::Index n = sys.size(), n_out = maps.c_out.rows(), n_in = maps.b_in.cols();
   const Eigen::Index lines = static_cast<Eigen::Index>(w.size());
   report.method = "modal, Krylov basis";
-  Eigen::MatrixXcd h = Eigen::MatrixXcd::Zero(lines, n_out * n_in);
-  if (n_out == 0 || n_in == 0 || lines == 0) return h;
+  if (n_out == 0 || n_in == 0 || lines == 0) return Eigen::MatrixXcd::Zero(lines, n_out * n_in);
   const double w_max = *std::max_element(w.begin(), w.end());
   const auto op = make_operator(sys, -0.5 * w_max, w_max);
   const double sigma = op->sigma();
@@ -256,30 +279,27 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
   const int p = arnoldi.block();
   const Eigen::MatrixXd& beta = arnoldi.start_coefficients();  // p x n_in
   const double beta_norm = std::max(beta.norm(), 1e-300);
-  Eigen::VectorXcd mu(lines);  // s - sigma on each line
+  // The reduced FRF is L (I - mu T)^-1 E_1 beta with mu = s - sigma: the
+  // pole sum of frf_pole_sum.h with alpha = 1, beta = mu.
+  Eigen::VectorXcd mu(lines);
   for (Eigen::Index l = 0; l < lines; ++l) mu(l) = cd(-sigma, w[static_cast<size_t>(l)]);
+  const Eigen::VectorXcd ones = Eigen::VectorXcd::Ones(lines);
 
   // Intermediate checks look at a subset of lines (evenly spaced); only
   // when it passes are all lines checked.
   constexpr Eigen::Index kCheckLines = 64;
-  std::vector<Eigen::Index> subset;
-  for (Eigen::Index c = 0; c < std::min(lines, kCheckLines); ++c) {
-    subset.push_back(lines <= kCheckLines ? c : c * (lines - 1) / (kCheckLines - 1));
-  }
-  Eigen::VectorXcd mu_subset(static_cast<Eigen::Index>(subset.size()));
-  for (size_t c = 0; c < subset.size(); ++c) mu_subset(static_cast<Eigen::Index>(c)) = mu(subset[c]);
+  const Eigen::Index n_sub = std::min(lines, kCheckLines);
+  Eigen::VectorXcd mu_sub(n_sub);
+  for (Eigen::Index c = 0; c < n_sub; ++c) mu_sub(c) = mu(lines <= kCheckLines ? c : c * (lines - 1) / (kCheckLines - 1));
+  const Eigen::VectorXcd ones_sub = Eigen::VectorXcd::Ones(n_sub);
 
-  // 1 / (1 - mu theta) for every mu and theta.
-  auto kernel = [](const Eigen::VectorXcd& mus, const Eigen::VectorXcd& theta) {
-    Eigen::MatrixXcd g(mus.size(), theta.size());
-    for (Eigen::Index i = 0; i < theta.size(); ++i) g.col(i) = (cd(1.0) - mus.array() * theta(i)).inverse();
-    return g;
-  };
-  // Largest relative residual |mu| ||F E_last^T y|| / ||beta|| over the lines of g.
-  auto worst_residual = [&](const Eigen::MatrixXcd& g, const Eigen::VectorXcd& mus, const Eigen::MatrixXcd& kr) {
-    const Eigen::MatrixXcd res = g * kr;
+  // Largest relative residual |mu| ||F E_last^T y|| / ||beta|| over the
+  // lines of `sum` (its columns after the H entries hold F E_last^T y).
+  const Eigen::Index n_h = n_out * n_in;
+  auto worst_residual = [&](const Eigen::MatrixXcd& values, const Eigen::VectorXcd& mus) {
     double worst = 0.0;
-    for (Eigen::Index l = 0; l < mus.size(); ++l) worst = std::max(worst, std::abs(mus(l)) * res.row(l).norm() / beta_norm);
+    for (Eigen::Index l = 0; l < mus.size(); ++l)
+      worst = std::max(worst, std::abs(mus(l)) * values.row(l).tail(p * n_in).norm() / beta_norm);
     return worst;
   };
 
@@ -292,38 +312,34 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
     }
     const bool last = !room || arnoldi.size() >= kMaxSize;
     const int m = arnoldi.size();
-    const Ritz r = ritz_pairs(arnoldi);
-    // Reduced solve y(s) = (I - mu T)^-1 E_1 beta = W diag(1 / (1 - mu theta)) z.
-    Eigen::MatrixXcd e1b = Eigen::MatrixXcd::Zero(m, n_in);
-    e1b.topRows(p) = beta.cast<cd>();
-    const Eigen::MatrixXcd z = r.w.partialPivLu().solve(e1b);
-    // Residual rows: F (last block of W) diag(g) z, one p x n_in block per line.
-    const Eigen::MatrixXcd fx = arnoldi.coupling().cast<cd>() * r.w.bottomRows(p);
-    Eigen::MatrixXcd kr(m, p * n_in);
-    for (Eigen::Index i = 0; i < m; ++i)
-      for (Eigen::Index a = 0; a < p; ++a) kr.row(i).segment(a * n_in, n_in) = fx(a, i) * z.row(i);
-    double worst = worst_residual(kernel(mu_subset, r.theta), mu_subset, kr);
+    // T = P D P^-1 in real arithmetic (D block diagonal); the reduced solve
+    // y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the residual
+    // rows F E_last^T y share the kernel.
+    const Eigen::EigenSolver<Eigen::MatrixXd> es(arnoldi.projected());
+    if (es.info() != Eigen::Success) throw std::runtime_error("Krylov: eigenproblem of the projected matrix failed");
+    const Eigen::MatrixXd& pv = es.pseudoEigenvectors();
+    Eigen::MatrixXd e1b = Eigen::MatrixXd::Zero(m, n_in);
+    e1b.topRows(p) = beta;
+    Eigen::MatrixXd left(n_out + p, m);
+    left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m)) * pv;
+    left.bottomRows(p).noalias() = arnoldi.coupling() * pv.bottomRows(p);
+    const PoleSum sum(es.eigenvalues(), left, pv.partialPivLu().solve(e1b));
+    double worst = worst_residual(sum.evaluate(ones_sub, mu_sub), mu_sub);
     if (worst <= tol || last) {
       const double t1 = now_s();
-      const Eigen::MatrixXcd g = kernel(mu, r.theta);
-      const double kernel_s = seconds_since(t1);
-      worst = worst_residual(g, mu, kr);
+      const Eigen::MatrixXcd all = sum.evaluate(ones, mu);
+      const double lines_s = seconds_since(t1);
+      worst = worst_residual(all, mu);
       if (worst <= tol || last) {
         report.krylov_size = m;
         report.krylov_residual = worst;
         report.converged = worst <= tol;
         report.poles = m;
-        for (Eigen::Index i = 0; i < m; ++i) report.poles_in_band += std::abs(sigma + 1.0 / r.theta(i)) <= w_max ? 1 : 0;
-        // H(s) = -Cout V W diag(1 / (1 - mu theta)) z.
-        const Eigen::MatrixXcd a = (maps.c_out * arnoldi.vectors().topLeftCorner(n, m)).cast<cd>() * r.w;
-        Eigen::MatrixXcd k(m, n_out * n_in);
         for (Eigen::Index i = 0; i < m; ++i)
-          for (Eigen::Index o = 0; o < n_out; ++o) k.row(i).segment(o * n_in, n_in) = -a(o, i) * z.row(i);
-        report.setup_s = seconds_since(t0) - kernel_s;
-        const double t2 = now_s();
-        h.noalias() = g * k;
-        report.lines_s = seconds_since(t2) + kernel_s;
-        return h;
+          report.poles_in_band += std::abs(sigma + 1.0 / es.eigenvalues()(i)) <= w_max ? 1 : 0;
+        report.lines_s = lines_s;
+        report.setup_s = seconds_since(t0) - lines_s;
+        return all.leftCols(n_h);
       }
     }
     // Next size: once the residual falls geometrically, where its rate

@@ -10,9 +10,10 @@
 //   P(sigma) x1 = -s M b2 - (C_t + sigma M) b1,  P(sigma) = K + sigma C_t + sigma^2 M,
 // so every application is one solve with a sparse real factorization of
 // P(sigma) (KLU, computed once), the low-rank C_s entering by the Woodbury
-// identity. An eigenvalue theta of Op is an eigenvalue lambda = sigma +
-// 1 / theta of A: the modes nearest the shift have the largest theta and a
-// Krylov space of Op finds them first (Ericsson & Ruhe 1980; Saad,
+// identity (up to 200 DOFs: one dense LU of P(sigma) with C_s in it). An
+// eigenvalue theta of Op is an eigenvalue lambda = sigma + 1 / theta of A:
+// the modes nearest the shift have the largest theta and a Krylov space of
+// Op finds them first (Ericsson & Ruhe 1980; Saad,
 // Numerical Methods for Large Eigenvalue Problems, 2nd ed. 2011, ch. 6-7).
 // Block Arnoldi with full reorthogonalisation keeps the basis orthonormal to
 // round-off, and a block of p vectors finds eigenvalues of multiplicity up
@@ -53,6 +54,11 @@ class ShiftInvert {
   Eigen::Index n_ = 0;
   double sigma_ = 0.0, scale_ = 1.0;
   bool ok_ = false;
+  // Small systems: dense LU of P(sigma) (C_s included) and C_t + sigma M.
+  bool dense_ = false;
+  Eigen::PartialPivLU<Eigen::MatrixXd> dense_lu_;
+  Eigen::MatrixXd ct_sigma_m_;
+  // Large systems: KLU of P0 and Woodbury for C_s.
   std::unique_ptr<KluReal> lu_;
   Eigen::MatrixXd u_;    // structural damping columns with d > 0
   Eigen::VectorXd d_;
@@ -110,10 +116,11 @@ BandModes rotor_modes_in_band(const RotorSystem& sys, double omega_band_rad_per_
 // at a real shift sigma = -w_max / 2 started at Op B_s (Grimme 1997): it
 // matches H and its first moments at sigma and holds every mode of the
 // band that the inputs excite; its Ritz values beyond the band stand in for
-// the rest. With T = W diag(theta) W^-1 and z = W^-1 E_1 beta,
-//   H(s) = -Cout V W diag(1 / (1 - (s - sigma) theta)) z,
+// the rest. With T = P D P^-1 in real pseudo-eigen form (D block diagonal,
+// frf_pole_sum.h) and z = P^-1 E_1 beta,
+//   H(s) = -Cout V P (I - (s - sigma) D)^-1 z,
 // a sum over poles lambda_i = sigma + 1 / theta_i costing O(basis x
-// entries) per line. The basis grows until the relative residual of the
+// entries) per line in real arithmetic. The basis grows until the relative residual of the
 // reduced solve, |s - sigma| ||F E_last^T y(s)|| / ||beta||, is below the
 // tolerance on every line.
 

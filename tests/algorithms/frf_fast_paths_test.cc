@@ -105,5 +105,47 @@ TEST(FrfFastPaths, KrylovModalMatchesDirectOnSixtyElementShaft) {
   EXPECT_LT(worst_relative_peak(hk, hd), 1e-7);
 }
 
+// The default modal basis is the Krylov one for the pump too; the sum over
+// every eigenvalue (dense eigen-decomposition, real-arithmetic pole sum) stays
+// as the exact reference. Its bound is the round-off of the 176-state
+// eigen-decomposition (frf_synthesis_test.cc).
+TEST(FrfFastPaths, AutomaticModalBasisIsKrylovAndAllEigenvaluesAgreeOnReferencePump) {
+  const PlantModel plant = read_plant_file(testing::data_file("reference_pump/plant.json"));
+  const std::vector<double> f = frequency_grid(1.0, 1000.0, 3.0);
+  FrfSynthesisOptions automatic, all;
+  automatic.method = all.method = FrfMethod::modal;
+  all.modal_basis = ModalBasis::all;
+  FrfReport ra, rall;
+  const FrfData direct = synthesize_frf(plant, 2950, f);
+  const FrfData ha = synthesize_frf(plant, 2950, f, automatic, &ra);
+  const FrfData hall = synthesize_frf(plant, 2950, f, all, &rall);
+  EXPECT_NE(ra.method.find("Krylov"), std::string::npos) << ra.method;
+  EXPECT_TRUE(ra.converged);
+  EXPECT_LT(worst_relative_rms(ha, direct), 1e-7);
+  EXPECT_NE(rall.method.find("all eigenvalues"), std::string::npos) << rall.method;
+  EXPECT_EQ(rall.poles, 176);
+  EXPECT_LT(worst_relative_rms(hall, direct), 1e-6);
+  EXPECT_LT(worst_relative_peak(hall, direct), 1e-6);
+}
+
+// A rotor so small (10 elements, 88 states) and a band so wide (5 kHz) that
+// the Krylov basis fills the state space before it reaches krylov_tol: the
+// automatic basis must then fall back to every eigenvalue and still match
+// the direct FRF.
+TEST(FrfFastPaths, AutomaticModalMatchesDirectOnTenElementShaft) {
+  const PlantModel plant = testing::generated_rotor(10);
+  const std::vector<double> f = frequency_grid(5.0, 5000.0, 5.0);
+  FrfSynthesisOptions modal;
+  modal.method = FrfMethod::modal;
+  FrfReport rep;
+  const FrfData hd = synthesize_frf(plant, 3000, f);
+  const FrfData hm = synthesize_frf(plant, 3000, f, modal, &rep);
+  EXPECT_TRUE(rep.converged);
+  EXPECT_LT(worst_relative_rms(hm, hd), 1e-7);
+  EXPECT_LT(worst_relative_peak(hm, hd), 1e-7);
+  RecordProperty("method", rep.method);
+  RecordProperty("poles", std::to_string(rep.poles));
+}
+
 }  // namespace
 }  // namespace ambdiag

@@ -32,7 +32,8 @@
 namespace ambdiag {
 
 enum class FrfMethod { direct, modal };
-// automatic: all eigenvalues up to 400 states, else a Krylov basis.
+// automatic: a Krylov basis; for up to 400 states every eigenvalue when the
+// basis does not reach krylov_tol on every line.
 enum class ModalBasis { automatic, all, krylov };
 
 struct FrfSynthesisOptions {
