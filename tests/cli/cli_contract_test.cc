@@ -1,10 +1,7 @@
 // The CLI contract of ../shared/specs/cli.md, checked on the real binary:
 // exit codes, JSON on stdout, messages on stderr.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -12,32 +9,16 @@
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/core/uff58.h"
+#include "cli_run.h"
 #include "test_support.h"
 
 namespace ambdiag {
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
+using Result = testing::CliResult;
 
 // Runs the ambdiag binary with shell-quoted arguments.
-Result run(const std::string& args) {
-  // Not scratch_dir(): that would empty the test's own folder.
-  const std::string err_path = testing::write_scratch("stderr.txt", "").string();
-  const std::string cmd = std::string(AMBDIAG_CLI) + " " + args + " 2>" + err_path;
-  Result r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_path);
-  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
-  return r;
-}
+Result run(const std::string& args) { return testing::run_cli(args); }
 
 std::string data(const std::string& rel) { return testing::data_file(rel).string(); }
 

@@ -2,12 +2,9 @@
 // never a crash; either exit 3 with a message naming the file and what is
 // wrong, or exit 0 with no mode and a warning.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
 #include <cmath>
 #include <complex>
-#include <cstdio>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -15,30 +12,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli_run.h"
 #include "test_support.h"
 
 namespace ambdiag {
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
+using Result = testing::CliResult;
 
-Result run_fit(const std::string& file) {
-  const std::string err_path = testing::write_scratch("fit_stderr.txt", "").string();
-  const std::string cmd = std::string(AMBDIAG_CLI) + " fit " + file + " --json 2>" + err_path;
-  Result r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_path);
-  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
-  return r;
-}
+Result run_fit(const std::string& file) { return testing::run_cli("fit " + file + " --json"); }
 
 // One SISO compliance file; `h(f)` gives the value, `sigma(f)` < 0 omits
 // the sigma column.

@@ -1,6 +1,5 @@
 // Runs the real ambdiag binary (AMBDIAG_CLI) for the CLI tests: exit code,
-// stdout and stderr. (cli_contract_test.cc has its own copy of this; the
-// two can share this header.)
+// stdout and stderr.
 #pragma once
 
 #include <sys/wait.h>
