@@ -202,6 +202,18 @@ void check_references(const RunRecording& run, const ChannelPlan& plan, const Wi
   }
 }
 
+double median_excited_power(const std::vector<double>& power, double fraction) {
+  if (power.empty()) return 0.0;
+  const double max_power = *std::max_element(power.begin(), power.end());
+  std::vector<double> excited;
+  for (double x : power) {
+    if (x > fraction * max_power) excited.push_back(x);
+  }
+  if (excited.empty()) return 0.0;
+  std::nth_element(excited.begin(), excited.begin() + static_cast<long>(excited.size() / 2), excited.end());
+  return excited[excited.size() / 2];
+}
+
 std::string format_number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);

@@ -5,6 +5,7 @@
 
 #include <complex>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -106,6 +107,10 @@ class FrfAssembler {
 std::string describe_lines(const std::vector<double>& freq_hz);
 std::string format_number(double v);
 
+// Median of the line powers above `fraction` of the strongest: the reference
+// level for "weak line" tests. 0 when no line is excited.
+double median_excited_power(const std::vector<double>& power, double fraction);
+
 }  // namespace ambdiag::frf_estimation
 
 namespace ambdiag {
@@ -120,4 +125,8 @@ FrfEstimate estimate_lpm(const RunRecording& run, const frf_estimation::ChannelP
                          const FrfEstimationOptions& options);
 FrfEstimate estimate_gated(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
                            const FrfEstimationOptions& options);
+// Gating and the local polynomial method need segments of one length; for
+// others this is the Welch estimate with a warning naming `method`, else empty.
+std::optional<FrfEstimate> welch_if_segments_differ(const RunRecording& run, const frf_estimation::ChannelPlan& plan,
+                                                    const FrfEstimationOptions& options, const std::string& method);
 }  // namespace ambdiag

@@ -33,6 +33,7 @@
 namespace ambdiag {
 
 using frf_estimation::ChannelPlan;
+using frf_estimation::median_excited_power;
 using frf_estimation::Experiment;
 
 namespace {
@@ -65,18 +66,9 @@ std::vector<double> gate(int64_t n, int64_t len, int64_t pre, int64_t shift) {
 
 FrfEstimate estimate_gated(const RunRecording& run, const ChannelPlan& plan,
                            const FrfEstimationOptions& options) {
+  if (auto welch = welch_if_segments_differ(run, plan, options, "gating")) return *welch;
   const Excitation& ex = *run.excitation;
   const int64_t n = ex.segments.front().length;
-  for (const auto& s : ex.segments) {
-    if (s.length != n) {
-      FrfEstimationOptions welch = options;
-      welch.method = NonperiodicMethod::welch;
-      FrfEstimate est = estimate_welch(run, plan, welch);
-      est.warnings.insert(est.warnings.begin(),
-                          "segments of different lengths: Welch averaging instead of gating");
-      return est;
-    }
-  }
   FrfEstimate est;
   est.method = "gated";
   const int n_out = plan.n_out(), n_in = plan.n_in(), n_seg = static_cast<int>(ex.segments.size());
@@ -128,12 +120,7 @@ FrfEstimate estimate_gated(const RunRecording& run, const ChannelPlan& plan,
       power[b] += rs[static_cast<size_t>(s)].col(static_cast<Eigen::Index>(b)).squaredNorm();
   }
   const double max_power = *std::max_element(power.begin(), power.end());
-  std::vector<double> excited;
-  for (double x : power) {
-    if (x > kExcitedPowerFraction * max_power) excited.push_back(x);
-  }
-  std::nth_element(excited.begin(), excited.begin() + static_cast<long>(excited.size() / 2), excited.end());
-  const double median_power = excited[excited.size() / 2];
+  const double median_power = median_excited_power(power, kExcitedPowerFraction);
 
   // H of every line of the band; lines that cannot be solved are zero in the
   // impulse response and not written.

@@ -34,6 +34,7 @@
 namespace ambdiag {
 
 using frf_estimation::ChannelPlan;
+using frf_estimation::median_excited_power;
 
 namespace {
 
@@ -46,19 +47,9 @@ constexpr double kWeakLineFraction = 1e-2;  // of the median excited line's refe
 
 FrfEstimate estimate_lpm(const RunRecording& run, const ChannelPlan& plan,
                          const FrfEstimationOptions& options) {
+  if (auto welch = welch_if_segments_differ(run, plan, options, "the local polynomial method")) return *welch;
   const Excitation& ex = *run.excitation;
   const int64_t n = ex.segments.front().length;
-  for (const auto& s : ex.segments) {
-    if (s.length != n) {
-      FrfEstimationOptions welch = options;
-      welch.method = NonperiodicMethod::welch;
-      FrfEstimate est = estimate_welch(run, plan, welch);
-      est.warnings.insert(
-          est.warnings.begin(),
-          "segments of different lengths: Welch averaging instead of the local polynomial method");
-      return est;
-    }
-  }
   FrfEstimate est;
   est.method = "lpm";
   const int n_out = plan.n_out(), n_in = plan.n_in(), n_seg = static_cast<int>(ex.segments.size());
@@ -113,12 +104,7 @@ FrfEstimate estimate_lpm(const RunRecording& run, const ChannelPlan& plan,
       power[static_cast<size_t>(k - k_lo)] += r[static_cast<size_t>(s)].col(k).squaredNorm();
   }
   const double max_power = *std::max_element(power.begin(), power.end());
-  std::vector<double> excited;
-  for (double x : power) {
-    if (x > kExcitedPowerFraction * max_power) excited.push_back(x);
-  }
-  std::nth_element(excited.begin(), excited.begin() + static_cast<long>(excited.size() / 2), excited.end());
-  const double median_power = excited.empty() ? 0.0 : excited[excited.size() / 2];
+  const double median_power = median_excited_power(power, kExcitedPowerFraction);
   // Local windows stay inside the excited band when it is wide enough.
   const int64_t band_lo = (k_hi - k_lo + 1 >= width) ? k_lo : 1;
   const int64_t band_hi = (k_hi - k_lo + 1 >= width) ? k_hi : last;

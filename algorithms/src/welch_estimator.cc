@@ -33,6 +33,7 @@
 namespace ambdiag {
 
 using frf_estimation::ChannelPlan;
+using frf_estimation::median_excited_power;
 
 namespace {
 
@@ -62,6 +63,18 @@ std::string method_name(NonperiodicMethod m, bool inputs_are_references) {
 }
 
 }  // namespace
+
+std::optional<FrfEstimate> welch_if_segments_differ(const RunRecording& run, const ChannelPlan& plan,
+                                                    const FrfEstimationOptions& options, const std::string& method) {
+  const auto& segments = run.excitation->segments;
+  const int64_t n = segments.front().length;
+  if (std::all_of(segments.begin(), segments.end(), [&](const auto& s) { return s.length == n; })) return std::nullopt;
+  FrfEstimationOptions welch = options;
+  welch.method = NonperiodicMethod::welch;
+  FrfEstimate est = estimate_welch(run, plan, welch);
+  est.warnings.insert(est.warnings.begin(), "segments of different lengths: Welch averaging instead of " + method);
+  return est;
+}
 
 FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
                            const FrfEstimationOptions& options) {
@@ -189,12 +202,7 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
     power[static_cast<size_t>(b)] = s[static_cast<size_t>(b)].diagonal().segment(w0, nw).real().sum();
   }
   const double max_power = *std::max_element(power.begin(), power.end());
-  std::vector<double> excited;
-  for (double x : power) {
-    if (x > kExcitedPowerFraction * max_power) excited.push_back(x);
-  }
-  std::nth_element(excited.begin(), excited.begin() + static_cast<long>(excited.size() / 2), excited.end());
-  const double median_power = excited.empty() ? 0.0 : excited[excited.size() / 2];
+  const double median_power = median_excited_power(power, kExcitedPowerFraction);
   const bool with_sigma = n_win > n_in;
   frf_estimation::FrfAssembler out(plan, with_sigma, with_sigma);
   Eigen::MatrixXd sigma(n_out, n_in), coh(n_out, n_in);
