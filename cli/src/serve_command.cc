@@ -82,8 +82,13 @@ int run_serve(const std::vector<std::string>& argv) {
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
   rest.stop();
-  std::fprintf(stderr, "ambdiag serve: stopped (%lld blocks committed)\n",
-               static_cast<long long>(ingest.counters().blocks_stored.load()));
+  const auto& c = ingest.counters();
+  const auto h = ingest.health();
+  std::fprintf(stderr,
+               "ambdiag serve: stopped (%lld blocks, %lld bytes committed; %.3f s from the first block received to "
+               "the last commit; queue peak %lld bytes)\n",
+               static_cast<long long>(c.blocks_stored.load()), static_cast<long long>(c.bytes_stored.load()),
+               h.value("streaming_span_s", 0.0), static_cast<long long>(c.queue_peak_bytes.load()));
   return kExitOk;
 }
 

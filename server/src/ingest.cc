@@ -13,6 +13,8 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/storage/historian.h"
+#include "ingest_commit.h"
+#include "ingest_work.h"
 
 namespace ambdiag::server {
 
@@ -29,7 +31,15 @@ int64_t IngestCounters::rejected_total() const {
 }
 
 nlohmann::json IngestCounters::to_json() const {
+  const int64_t first = first_block_ns.load(), last = last_commit_ns.load();
   nlohmann::json j = {{"headers", headers.load()},
+                      {"monitoring_stored", monitoring_stored.load()},
+                      {"monitoring_duplicate", monitoring_duplicate.load()},
+                      {"storage_errors", storage_errors.load()},
+                      {"queue_bytes", queue_bytes.load()},
+                      {"queue_peak_bytes", queue_peak_bytes.load()},
+                      {"runs_verified_from_digest", runs_verified_from_digest.load()},
+                      {"streaming_span_s", first > 0 && last > first ? 1e-9 * static_cast<double>(last - first) : 0.0},
                       {"blocks_received", blocks_received.load()},
                       {"blocks_stored", blocks_stored.load()},
                       {"blocks_duplicate", blocks_duplicate.load()},
@@ -57,69 +67,87 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
 struct ActiveRun {
   std::string pump_id;
   uint32_t n_channels = 0;
   Clock::time_point last_seen;
+  // The run's FNV-1a 64 over blocks 0..chain_seq-1 as received (see
+  // detail::ValidBlock::chained).
+  int64_t chain_seq = 0;
+  uint64_t chain_hash = kFnv1a64Init;
 };
 
-struct PendingBlock {
-  int64_t seq, first_frame, n_frames;
-  std::vector<uint8_t> bytes;
-};
-
+// Finite unless some float has an all-ones exponent (NaN, infinity); no
+// early exit, so the compiler can vectorise it.
 bool all_finite(const uint8_t* p, size_t n_bytes) {
+  uint32_t bad = 0;
   for (size_t i = 0; i + 4 <= n_bytes; i += 4) {
-    float f;
-    std::memcpy(&f, p + i, 4);
-    if (!std::isfinite(f)) return false;
+    uint32_t u;
+    std::memcpy(&u, p + i, 4);
+    bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
   }
-  return true;
+  return bad == 0;
+}
+
+storage::MonitoringSnapshot from_dds(const ambdiag_stream_MonitoringSnapshot& m) {
+  storage::MonitoringSnapshot s;
+  s.pump_id = m.pump_id ? m.pump_id : "";
+  s.time_ns = m.time_ns;
+  s.speed_rpm = m.speed_rpm;
+  std::copy(std::begin(m.force_1x_amp_n), std::end(m.force_1x_amp_n), s.force_1x_amp_n.begin());
+  std::copy(std::begin(m.force_1x_phase_rad), std::end(m.force_1x_phase_rad), s.force_1x_phase_rad.begin());
+  std::copy(std::begin(m.force_2x_amp_n), std::end(m.force_2x_amp_n), s.force_2x_amp_n.begin());
+  std::copy(std::begin(m.force_2x_phase_rad), std::end(m.force_2x_phase_rad), s.force_2x_phase_rad.begin());
+  std::copy(std::begin(m.orbit_major_m), std::end(m.orbit_major_m), s.orbit_major_m.begin());
+  std::copy(std::begin(m.orbit_minor_m), std::end(m.orbit_minor_m), s.orbit_minor_m.begin());
+  std::copy(std::begin(m.orbit_center_x_m), std::end(m.orbit_center_x_m), s.orbit_center_x_m.begin());
+  std::copy(std::begin(m.orbit_center_y_m), std::end(m.orbit_center_y_m), s.orbit_center_y_m.begin());
+  return s;
 }
 
 }  // namespace
 
+// The receive thread's side; the commit thread runs detail::Committer.
 struct Ingest::Impl {
   Impl(storage::Historian& h, IngestOptions o, IngestCounters& c)
-      : historian(h), opt(std::move(o)), counters(c), ep(opt.domain, opt.partitions), ws(ep.participant) {
+      : opt(std::move(o)),
+        counters(c),
+        db_path(h.path()),
+        ep(opt.domain, opt.partitions),
+        ws(ep.participant),
+        queue(opt.max_queue_bytes),
+        committer(h, opt, c, ep.ack) {
     ws.attach_data(ep.header);
     ws.attach_data(ep.block);
     ws.attach_data(ep.end);
     ws.attach_data(ep.status);
+    ws.attach_data(ep.monitoring);
   }
 
-  storage::Historian& historian;
   IngestOptions opt;
   IngestCounters& counters;
+  std::string db_path;
+  std::optional<storage::Historian> reader;  // this thread's own read connection
   stream::ServerEndpoints ep;
   dds::WaitSet ws;
-  std::unordered_map<std::string, ActiveRun> active;                // runs receiving, by run_id
-  std::unordered_map<std::string, Clock::time_point> pump_seen;     // last heartbeat per pump
+  detail::WorkQueue queue;
+  detail::Committer committer;
+  std::unordered_map<std::string, ActiveRun> active;  // runs receiving, by run_id
   std::unordered_map<std::string, bool> warned_pump_version;
-
-  template <class... A>
-  void log(const char* fmt, A... a) {
-    if (!opt.verbose) return;
-    std::fprintf(stderr, "ambdiag serve: ");
-    std::fprintf(stderr, fmt, a...);
-    std::fputc('\n', stderr);
-  }
 
   void reject(const std::string& reason, const std::string& run_id, const std::string& what) {
     counters.reject(reason);
-    log("rejected (%s) run '%s': %s", reason.c_str(), run_id.c_str(), what.c_str());
+    detail::log_line(opt.verbose, "rejected (" + reason + ") run '" + run_id + "': " + what);
   }
 
-  void ack(const std::string& run_id, int64_t first, int64_t last, ambdiag_stream_AckState state,
-           const std::string& message) {
-    ambdiag_stream_Ack a{};
-    a.protocol_version = stream::kProtocolVersion;
-    a.run_id = const_cast<char*>(run_id.c_str());
-    a.first_seq = first;
-    a.last_seq = last;
-    a.state = state;
-    a.message = const_cast<char*>(message.c_str());
-    if (ep.ack.write(a)) ++counters.acks_sent;
+  void push(detail::Work w) {
+    const auto bytes = static_cast<int64_t>(queue.push(std::move(w)));
+    counters.queue_bytes = bytes;
+    if (bytes > counters.queue_peak_bytes) counters.queue_peak_bytes = bytes;
   }
 
   void take_status() {
@@ -133,10 +161,8 @@ struct Ingest::Impl {
         warned_pump_version[s.pump_id] = true;
         return;
       }
-      const auto now = Clock::now();
-      pump_seen[s.pump_id] = now;
       if (auto it = active.find(s.run_id); it != active.end() && it->second.pump_id == s.pump_id)
-        it->second.last_seen = now;
+        it->second.last_seen = Clock::now();
     });
   }
 
@@ -148,17 +174,19 @@ struct Ingest::Impl {
         return;
       }
       try {
-        const storage::RunHeader rh = storage::run_header_from_json(h.header_json, "run header of " + run_id);
+        storage::RunHeader rh = storage::run_header_from_json(h.header_json, "run header of " + run_id);
         if (rh.run_id != run_id) throw InputError("run header: run_id '" + rh.run_id + "' differs from the key");
         if (rh.channels.size() != h.n_channels)
           throw InputError("run header: n_channels " + std::to_string(h.n_channels) + " but run.json has " +
                            std::to_string(rh.channels.size()) + " channels");
         if (rh.sample_rate_hz != h.sample_rate_hz) throw InputError("run header: sample_rate_hz differs from run.json");
-        historian.begin_run(rh);
-        ++counters.headers;
         const bool known = active.count(run_id) > 0;
-        active[run_id] = ActiveRun{rh.pump_id, h.n_channels, Clock::now()};
-        if (!known) log("run %s of pump %s: receiving", run_id.c_str(), rh.pump_id.c_str());
+        if (!known) {
+          active[run_id] = ActiveRun{rh.pump_id, h.n_channels, Clock::now()};
+          detail::log_line(opt.verbose, "run " + run_id + " of pump " + rh.pump_id + ": receiving");
+        }
+        active[run_id].last_seen = Clock::now();
+        push(detail::BeginRun{std::move(rh)});  // a repeated header is a no-op in the historian
       } catch (const InputError& e) {
         reject("header", run_id, e.what());
       }
@@ -169,92 +197,78 @@ struct Ingest::Impl {
   // again when its blocks arrive before its header is re-delivered.
   ActiveRun* find_or_load(const std::string& run_id) {
     if (auto it = active.find(run_id); it != active.end()) return &it->second;
-    const auto info = historian.find_run(run_id);
+    if (!reader) reader.emplace(storage::Historian::open(db_path, storage::Historian::Mode::read));
+    const auto info = reader->find_run(run_id);
     if (!info || info->status == storage::RunStatus::complete) return nullptr;
     auto& r = active[run_id];
     r = ActiveRun{info->pump_id, static_cast<uint32_t>(info->n_channels), Clock::now()};
     return &r;
   }
 
-  // Validates blocks into per-run batches; returns the number taken.
-  size_t take_blocks(std::map<std::string, std::vector<PendingBlock>>& batch) {
-    return ep.block.take(opt.max_batch_blocks, [&](const ambdiag_stream_SampleBlock& b, const dds_sample_info_t&) {
-      ++counters.blocks_received;
-      const std::string run_id = b.run_id;
-      const size_t n_bytes = b.payload._length;
-      if (!stream::compatible(b.protocol_version)) {
-        reject("version", run_id, "block protocol " + stream::version_string(b.protocol_version));
-        return;
-      }
-      if (n_bytes > stream::kMaxBlockPayloadBytes) {
-        reject("oversized", run_id, "block " + std::to_string(b.seq) + ": payload " + std::to_string(n_bytes) +
-                                        " bytes > limit " + std::to_string(stream::kMaxBlockPayloadBytes));
-        return;
-      }
-      const ActiveRun* run = find_or_load(run_id);
-      if (!run) {
-        ++counters.blocks_orphan;  // header not (yet) seen: the agent re-sends unacknowledged blocks
-        return;
-      }
-      if (b.seq < 0 || b.first_frame < 0 || b.n_frames == 0 ||
-          n_bytes != static_cast<size_t>(b.n_frames) * run->n_channels * sizeof(float)) {
-        reject("size", run_id, "block " + std::to_string(b.seq) + ": " + std::to_string(n_bytes) + " bytes for " +
-                                   std::to_string(b.n_frames) + " frames x " + std::to_string(run->n_channels) +
-                                   " channels (seq " + std::to_string(b.seq) + ", first_frame " +
-                                   std::to_string(b.first_frame) + ")");
-        return;
-      }
-      if (fnv1a64(b.payload._buffer, n_bytes) != b.checksum) {
-        reject("checksum", run_id, "block " + std::to_string(b.seq) + ": checksum mismatch");
-        return;
-      }
-      if (!all_finite(b.payload._buffer, n_bytes)) {
-        reject("non_finite", run_id, "block " + std::to_string(b.seq) + ": NaN or infinite sample");
-        return;
-      }
-      batch[run_id].push_back(
-          PendingBlock{b.seq, b.first_frame, b.n_frames, std::vector<uint8_t>(b.payload._buffer, b.payload._buffer + n_bytes)});
-    });
-  }
-
-  // One transaction per run; a conflicting block fails the transaction, so
-  // the batch is then stored block by block to isolate it.
-  std::vector<int64_t> store(const std::string& run_id, const std::vector<PendingBlock>& blocks) {
-    std::vector<storage::Chunk> chunks;
-    for (const auto& b : blocks) chunks.push_back(storage::Chunk{b.seq, b.first_frame, b.n_frames, b.bytes});
-    std::vector<int64_t> ok;
-    auto count = [&](const storage::PutResult& r, size_t bytes) {
-      counters.blocks_stored += r.stored;
-      counters.blocks_duplicate += r.duplicates;
-      if (r.stored > 0) counters.bytes_stored += static_cast<int64_t>(bytes);
-      ++counters.commits;
-      if (opt.commit_delay.count() > 0) std::this_thread::sleep_for(opt.commit_delay);
-    };
-    try {
-      size_t bytes = 0;
-      for (const auto& b : blocks) bytes += b.bytes.size();
-      count(historian.put_chunks(run_id, chunks), bytes);
-      for (const auto& b : blocks) ok.push_back(b.seq);
-    } catch (const InputError&) {
-      for (size_t i = 0; i < chunks.size(); ++i) {
-        try {
-          count(historian.put_chunks(run_id, std::span(&chunks[i], 1)), blocks[i].bytes.size());
-          ok.push_back(blocks[i].seq);
-        } catch (const InputError& e) {
-          reject("conflict", run_id, e.what());
-        }
-      }
+  // Validates one block; returns it ready to queue, or nothing (rejected
+  // and counted, or orphan).
+  std::optional<detail::ValidBlock> validate(const ambdiag_stream_SampleBlock& b) {
+    ++counters.blocks_received;
+    if (counters.first_block_ns == 0) counters.first_block_ns = steady_ns();
+    const std::string run_id = b.run_id;
+    const size_t n_bytes = b.payload._length;
+    if (!stream::compatible(b.protocol_version)) {
+      reject("version", run_id, "block protocol " + stream::version_string(b.protocol_version));
+      return std::nullopt;
     }
-    return ok;
+    if (n_bytes > stream::kMaxBlockPayloadBytes) {
+      reject("oversized", run_id, "block " + std::to_string(b.seq) + ": payload " + std::to_string(n_bytes) +
+                                      " bytes > limit " + std::to_string(stream::kMaxBlockPayloadBytes));
+      return std::nullopt;
+    }
+    ActiveRun* run = find_or_load(run_id);
+    if (!run) {
+      ++counters.blocks_orphan;  // header not (yet) seen: the agent re-sends unacknowledged blocks
+      return std::nullopt;
+    }
+    if (b.seq < 0 || b.first_frame < 0 || b.n_frames == 0 ||
+        n_bytes != static_cast<size_t>(b.n_frames) * run->n_channels * sizeof(float)) {
+      reject("size", run_id, "block " + std::to_string(b.seq) + ": " + std::to_string(n_bytes) + " bytes for " +
+                                 std::to_string(b.n_frames) + " frames x " + std::to_string(run->n_channels) +
+                                 " channels (seq " + std::to_string(b.seq) + ", first_frame " +
+                                 std::to_string(b.first_frame) + ")");
+      return std::nullopt;
+    }
+    // The block's own checksum and, when it extends the run's chain, the
+    // run's running one, in one pass.
+    const bool extends = b.seq == run->chain_seq;
+    uint64_t block_hash = kFnv1a64Init, run_hash = run->chain_hash;
+    if (extends)
+      fnv1a64_pair(b.payload._buffer, n_bytes, block_hash, run_hash);
+    else
+      block_hash = fnv1a64(b.payload._buffer, n_bytes);
+    if (block_hash != b.checksum) {
+      reject("checksum", run_id, "block " + std::to_string(b.seq) + ": checksum mismatch");
+      return std::nullopt;
+    }
+    if (!all_finite(b.payload._buffer, n_bytes)) {
+      reject("non_finite", run_id, "block " + std::to_string(b.seq) + ": NaN or infinite sample");
+      return std::nullopt;
+    }
+    run->last_seen = Clock::now();
+    detail::ValidBlock v{b.seq, b.first_frame, b.n_frames,
+                         std::vector<uint8_t>(b.payload._buffer, b.payload._buffer + n_bytes), extends,
+                         run->chain_hash, run_hash};
+    if (extends) run->chain_seq = b.seq + 1, run->chain_hash = run_hash;
+    return v;
   }
 
-  void ack_ranges(const std::string& run_id, std::vector<int64_t> seqs) {
-    std::sort(seqs.begin(), seqs.end());
-    for (size_t i = 0; i < seqs.size();) {
-      size_t j = i;
-      while (j + 1 < seqs.size() && seqs[j + 1] <= seqs[j] + 1) ++j;
-      ack(run_id, seqs[i], seqs[j], ambdiag_stream_ACK_STORED, "");
-      i = j + 1;
+  // Takes blocks while the queue has room, at most 32 per queued item so the
+  // commit thread starts on them early; stops when DDS has no more.
+  void take_blocks() {
+    constexpr size_t kPerItem = 32;
+    for (int round = 0; round < 64 && queue.has_room(); ++round) {
+      std::map<std::string, std::vector<detail::ValidBlock>> by_run;
+      const size_t n = ep.block.take(kPerItem, [&](const ambdiag_stream_SampleBlock& b, const dds_sample_info_t&) {
+        if (auto v = validate(b)) by_run[b.run_id].push_back(std::move(*v));
+      });
+      for (auto& [run_id, blocks] : by_run) push(detail::Blocks{run_id, std::move(blocks)});
+      if (n < kPerItem) break;
     }
   }
 
@@ -265,30 +279,29 @@ struct Ingest::Impl {
         reject("version", run_id, "run end protocol " + stream::version_string(e.protocol_version));
         return;
       }
-      try {
-        if (e.aborted) {
-          const auto st = historian.mark_incomplete(run_id, std::string("agent aborted: ") + e.reason);
-          finish(run_id, st, std::string("aborted: ") + e.reason);
-          return;
-        }
-        const storage::EndResult r = historian.end_run(run_id, e.total_frames, e.checksum);
-        finish(run_id, r.status, r.reason);
-      } catch (const InputError& ex) {
-        reject("run_end", run_id, ex.what());
-        ack(run_id, -1, -1, ambdiag_stream_ACK_REJECTED, ex.what());
-      }
+      active.erase(run_id);
+      push(detail::EndRun{run_id, e.total_frames, e.checksum, static_cast<bool>(e.aborted), e.reason});
     });
   }
 
-  void finish(const std::string& run_id, storage::RunStatus st, const std::string& reason) {
-    const bool was_active = active.erase(run_id) > 0;
-    if (st == storage::RunStatus::complete) {
-      if (was_active) ++counters.runs_complete, log("run %s: complete", run_id.c_str());
-      ack(run_id, -1, -1, ambdiag_stream_ACK_COMPLETE, "complete: count and checksum verified");
-    } else {
-      if (was_active) ++counters.runs_incomplete, log("run %s: incomplete: %s", run_id.c_str(), reason.c_str());
-      ack(run_id, -1, -1, ambdiag_stream_ACK_INCOMPLETE, "incomplete: " + reason);
-    }
+  void take_monitoring() {
+    std::vector<storage::MonitoringSnapshot> ok;
+    ep.monitoring.take(1024, [&](const ambdiag_stream_MonitoringSnapshot& m, const dds_sample_info_t&) {
+      const std::string pump = m.pump_id ? m.pump_id : "";
+      if (!stream::compatible(m.protocol_version)) {
+        reject("version", pump, "monitoring snapshot protocol " + stream::version_string(m.protocol_version));
+        return;
+      }
+      storage::MonitoringSnapshot s = from_dds(m);
+      try {
+        storage::validate(s);
+        ok.push_back(std::move(s));
+      } catch (const InputError& e) {
+        counters.reject("monitoring");
+        detail::log_line(opt.verbose, std::string("rejected (monitoring) pump '") + pump + "': " + e.what());
+      }
+    });
+    if (!ok.empty()) push(detail::Monitoring{std::move(ok)});
   }
 
   void check_timeouts() {
@@ -302,31 +315,39 @@ struct Ingest::Impl {
       const std::string reason = "agent of pump " + active[run_id].pump_id + " silent for more than " +
                                  std::to_string(opt.agent_timeout.count() / 1000.0).substr(0, 4) +
                                  " s (no heartbeat, no data) before the run end";
-      try {
-        finish(run_id, historian.mark_incomplete(run_id, reason), reason);
-      } catch (const InputError& e) {
-        active.erase(run_id);
-        log("run %s: %s", run_id.c_str(), e.what());
-      }
+      active.erase(run_id);
+      push(detail::MarkIncomplete{run_id, reason});
     }
   }
 
-  void step() {
-    ws.wait(100ms);
+  void receive_step() {
+    // A full queue: blocks wait in DDS (which pushes back on the writers);
+    // the waitset would fire at once for them, so wait for room instead.
+    if (queue.has_room())
+      ws.wait(100ms);
+    else
+      queue.wait_for_room(20ms);
     take_status();
     take_headers();
-    // Blocks: drain in batches, one transaction per run per batch, acks after commit.
-    for (int round = 0; round < 16; ++round) {
-      std::map<std::string, std::vector<PendingBlock>> batch;
-      const size_t n = take_blocks(batch);
-      for (auto& [run_id, blocks] : batch) {
-        if (auto it = active.find(run_id); it != active.end()) it->second.last_seen = Clock::now();
-        ack_ranges(run_id, store(run_id, blocks));
-      }
-      if (n < opt.max_batch_blocks) break;
-    }
+    take_blocks();
     take_ends();
+    take_monitoring();
     check_timeouts();
+  }
+
+  void commit_loop(const std::atomic<bool>& receiving_done) {
+    for (;;) {
+      // Read the flag before popping: once it is set nothing more is pushed,
+      // so an empty pop after it means everything is committed.
+      const bool done = receiving_done.load();
+      auto batch = queue.pop_batch(opt.max_batch_blocks, opt.max_batch_bytes, 100ms);
+      counters.queue_bytes = static_cast<int64_t>(queue.bytes());
+      if (batch.empty()) {
+        if (done) return;
+        continue;
+      }
+      committer.commit(batch);
+    }
   }
 };
 
@@ -336,7 +357,17 @@ Ingest::Ingest(storage::Historian& historian, IngestOptions opt)
 Ingest::~Ingest() = default;
 
 void Ingest::run(const std::atomic<bool>& stop_flag) {
-  while (!stop_flag.load()) impl_->step();
+  std::atomic<bool> receiving_done{false};
+  std::thread committer([&] { impl_->commit_loop(receiving_done); });
+  struct Join {  // the commit thread finishes the queue even if receiving throws
+    std::atomic<bool>& done;
+    std::thread& t;
+    ~Join() {
+      done = true;
+      t.join();
+    }
+  } join{receiving_done, committer};
+  while (!stop_flag.load()) impl_->receive_step();
 }
 
 }  // namespace ambdiag::server

@@ -43,6 +43,24 @@ nlohmann::json run_json(const storage::RunInfo& r, bool with_header) {
   return j;
 }
 
+nlohmann::json monitoring_json(const storage::MonitoringSnapshot& s) {
+  const auto planes = [](const std::array<double, 4>& v) {
+    return nlohmann::json{{"ax", v[0]}, {"ay", v[1]}, {"bx", v[2]}, {"by", v[3]}};
+  };
+  const auto bearing = [&](size_t i) {
+    return nlohmann::json{{"major_m", s.orbit_major_m[i]},
+                          {"minor_m", s.orbit_minor_m[i]},
+                          {"center_x_m", s.orbit_center_x_m[i]},
+                          {"center_y_m", s.orbit_center_y_m[i]}};
+  };
+  return {{"time", storage::utc_from_ns(s.time_ns)},
+          {"time_ns", std::to_string(s.time_ns)},
+          {"speed_rpm", s.speed_rpm},
+          {"force_1x", {{"amp_n", planes(s.force_1x_amp_n)}, {"phase_rad", planes(s.force_1x_phase_rad)}}},
+          {"force_2x", {{"amp_n", planes(s.force_2x_amp_n)}, {"phase_rad", planes(s.force_2x_phase_rad)}}},
+          {"orbit", {{"a", bearing(0)}, {"b", bearing(1)}}}};
+}
+
 std::string dump(const nlohmann::json& j) { return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace); }
 
 }  // namespace ambdiag::server::detail

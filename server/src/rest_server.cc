@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <chrono>
+#include <limits>
 #include <optional>
 #include <thread>
 
@@ -34,7 +35,7 @@ std::string join(const Segments& s, size_t from, size_t to) {
   return out;
 }
 
-enum class Route { health, pumps, pump_runs, run, samples, none };
+enum class Route { health, pumps, pump_runs, pump_monitoring, run, samples, none };
 
 struct Match {
   Route route = Route::none;
@@ -47,6 +48,7 @@ Match match(const Segments& s) {
   if (s[2] == "pumps") {
     if (s.size() == 3) return {Route::pumps, ""};
     if (s.size() == 5 && s[4] == "runs" && !s[3].empty()) return {Route::pump_runs, s[3]};
+    if (s.size() == 5 && s[4] == "monitoring" && !s[3].empty()) return {Route::pump_monitoring, s[3]};
     return {};
   }
   if (s[2] == "runs" && s.size() >= 4) {
@@ -76,6 +78,7 @@ struct RestServer::Impl {
       case Route::health: return health(res);
       case Route::pumps: return pumps(res);
       case Route::pump_runs: return pump_runs(res, m.id);
+      case Route::pump_monitoring: return pump_monitoring(req, res, m.id);
       case Route::run: return run(res, m.id);
       case Route::samples: return samples(res, m.id);
       case Route::none: break;
@@ -118,6 +121,32 @@ struct RestServer::Impl {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& r : h->list_runs(pump_id)) list.push_back(detail::run_json(r, false));
     send_json(res, 200, {{"pump_id", pump_id}, {"runs", list}});
+  }
+
+  // ?since=TIME (UTC ISO 8601 or ns since the epoch, inclusive; default:
+  // all) &limit=N (1..10000, default 1000); oldest first. When the limit
+  // cut the list, "next_since" is where the next page starts.
+  void pump_monitoring(const httplib::Request& req, httplib::Response& res, const std::string& pump_id) {
+    constexpr std::int64_t kMaxLimit = 10000;
+    std::int64_t since = std::numeric_limits<std::int64_t>::min(), limit = 1000;
+    if (req.has_param("since")) since = storage::ns_from_utc(req.get_param_value("since"), "since");
+    if (req.has_param("limit")) {
+      const std::string l = req.get_param_value("limit");
+      if (l.empty() || l.size() > 6 || l.find_first_not_of("0123456789") != std::string::npos ||
+          std::stoll(l) < 1 || std::stoll(l) > kMaxLimit)
+        return send_error(res, 400, "limit: '" + l + "' is not an integer in 1.." + std::to_string(kMaxLimit));
+      limit = std::stoll(l);
+    }
+    auto h = pool.acquire();
+    auto snap = h->snapshot();
+    if (!h->find_pump(pump_id)) return send_error(res, 404, "no pump '" + pump_id + "'");
+    const auto list = h->list_monitoring(pump_id, since, limit + 1);  // one more: is there a next page?
+    nlohmann::json out = nlohmann::json::array();
+    for (size_t i = 0; i < list.size() && static_cast<std::int64_t>(i) < limit; ++i)
+      out.push_back(detail::monitoring_json(list[i]));
+    nlohmann::json j = {{"pump_id", pump_id}, {"limit", limit}, {"snapshots", out}};
+    if (static_cast<std::int64_t>(list.size()) > limit) j["next_since"] = storage::utc_from_ns(list.back().time_ns);
+    send_json(res, 200, j);
   }
 
   void run(httplib::Response& res, const std::string& run_id) {

@@ -12,15 +12,10 @@
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
+#include "historian_impl.h"
 #include "schema.h"
-#include "sqlite_db.h"
 
 namespace ambdiag::storage {
-
-using detail::Stmt;
-using detail::Transaction;
-
-namespace {
 
 std::string now_utc() {
   const auto now = std::chrono::system_clock::now();
@@ -45,6 +40,8 @@ RunStatus status_from_text(const std::string& s) {
   if (s == "incomplete") return RunStatus::incomplete;
   return RunStatus::receiving;
 }
+
+namespace {
 
 // The run columns in the order read_run_row expects.
 #define AMBDIAG_RUN_COLUMNS                                                                                  \
@@ -74,47 +71,7 @@ RunInfo read_run_row(const Stmt& s) {
   return r;
 }
 
-std::string quoted(const std::string& id) { return "'" + id + "'"; }
-
 }  // namespace
-
-struct Historian::Impl {
-  detail::Db db;
-  bool read_only;
-  int snapshot_depth = 0;
-  std::optional<Transaction> snapshot_tx;
-  std::unordered_map<const char*, Stmt> stmts;  // keyed by the SQL literal's address
-
-  Impl(detail::Db d, bool ro) : db(std::move(d)), read_only(ro) {}
-
-  // A cached prepared statement, reset and ready for bindings. `sql` must be
-  // a string literal; one statement is never used twice at once.
-  Stmt& stmt(const char* sql) {
-    auto it = stmts.find(sql);
-    if (it == stmts.end()) it = stmts.emplace(sql, Stmt(db, sql)).first;
-    return it->second.reset();
-  }
-
-  void require_writer(const char* what) const {
-    if (read_only) throw std::logic_error(std::string("Historian::") + what + " on a read-only connection");
-  }
-
-  struct RunState {
-    int n_channels;
-    RunStatus status;
-    std::optional<std::int64_t> expected_frames;
-    std::optional<std::uint64_t> expected_checksum;
-  };
-  RunState run_state(const std::string& run_id, const char* what) {
-    auto& s = stmt("SELECT n_channels, status, expected_frames, expected_checksum FROM runs WHERE run_id = ?");
-    s.bind(1, run_id);
-    if (!s.step()) throw InputError(std::string(what) + ": unknown run " + quoted(run_id));
-    RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt};
-    if (auto c = s.col_opt_int(3)) st.expected_checksum = std::bit_cast<std::uint64_t>(*c);
-    s.reset();
-    return st;
-  }
-};
 
 Historian Historian::open(const std::string& path, Mode mode) {
   const bool ro = mode == Mode::read;
@@ -245,7 +202,50 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
   return result;
 }
 
-EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum) {
+namespace {
+
+// One pass over a run's chunks in seq order: contiguity, frame total and
+// (when `with_blobs`) the checksum. Without blobs only the chunk index and
+// the rows' first bytes are read: a blob is the row's last column, so its
+// overflow pages stay on disk.
+struct ChunkScan {
+  std::string gap;  // first problem of seq / first_frame, empty if none
+  std::int64_t n_chunks = 0, frames = 0;
+  std::uint64_t hash = kFnv1a64Init;
+};
+
+ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool with_blobs) {
+  ChunkScan r;
+  std::int64_t next_seq = 0, next_frame = 0;
+  auto& s = with_blobs
+                ? impl.stmt("SELECT seq, first_frame, n_frames, data FROM sample_chunks WHERE run_id = ? ORDER BY seq")
+                : impl.stmt("SELECT seq, first_frame, n_frames FROM sample_chunks WHERE run_id = ? ORDER BY seq");
+  s.bind(1, run_id);
+  while (s.step()) {
+    const std::int64_t seq = s.col_int(0), first = s.col_int(1), n = s.col_int(2);
+    if (r.gap.empty() && seq != next_seq)
+      r.gap = seq - next_seq == 1 ? "missing chunk seq " + std::to_string(next_seq)
+                                  : "missing chunks seq " + std::to_string(next_seq) + ".." + std::to_string(seq - 1);
+    else if (r.gap.empty() && first != next_frame)
+      r.gap = "chunk seq " + std::to_string(seq) + " starts at frame " + std::to_string(first) + ", expected " +
+              std::to_string(next_frame);
+    if (with_blobs) {
+      const auto blob = s.col_blob(3);
+      r.hash = fnv1a64(blob.data(), blob.size(), r.hash);
+    }
+    ++r.n_chunks;
+    r.frames += n;
+    next_seq = seq + 1;
+    next_frame = first + n;
+  }
+  s.reset();
+  return r;
+}
+
+}  // namespace
+
+EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum,
+                             std::optional<HeldDigest> digest) {
   impl_->require_writer("end_run");
   const std::string ctx = "end_run " + quoted(run_id);
   if (total_frames < 0) throw InputError(ctx + ": total_frames must be >= 0");
@@ -254,41 +254,28 @@ EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frame
   const auto st = impl_->run_state(run_id, "end_run");
   if (st.status == RunStatus::complete) {
     if (st.expected_frames == total_frames && st.expected_checksum == checksum)
-      return {RunStatus::complete, "", total_frames, checksum};  // the same end again
+      return {RunStatus::complete, "", total_frames, checksum, false};  // the same end again
     throw InputError(ctx + ": the run is already complete with " + std::to_string(st.expected_frames.value_or(0)) +
                      " frames and checksum " + hex64(st.expected_checksum.value_or(0)) + "; this end says " +
                      std::to_string(total_frames) + " frames and " + hex64(checksum));
   }
-  // One pass over the chunks in seq order: contiguity, frame total, checksum.
   EndResult r;
-  std::uint64_t hash = kFnv1a64Init;
-  std::int64_t next_seq = 0, next_frame = 0;
-  std::string gap;
-  auto& s = impl_->stmt("SELECT seq, first_frame, n_frames, data FROM sample_chunks WHERE run_id = ? ORDER BY seq");
-  s.bind(1, run_id);
-  while (s.step()) {
-    const std::int64_t seq = s.col_int(0), first = s.col_int(1), n = s.col_int(2);
-    if (gap.empty() && seq != next_seq)
-      gap = seq - next_seq == 1 ? "missing chunk seq " + std::to_string(next_seq)
-                                : "missing chunks seq " + std::to_string(next_seq) + ".." + std::to_string(seq - 1);
-    else if (gap.empty() && first != next_frame)
-      gap = "chunk seq " + std::to_string(seq) + " starts at frame " + std::to_string(first) + ", expected " +
-            std::to_string(next_frame);
-    const auto blob = s.col_blob(3);
-    hash = fnv1a64(blob.data(), blob.size(), hash);
-    r.frames_held += n;
-    next_seq = seq + 1;
-    next_frame = first + n;
+  ChunkScan scan;
+  if (digest) {
+    scan = scan_chunks(*impl_, run_id, false);
+    r.used_digest = scan.gap.empty() && scan.n_chunks == digest->n_chunks;  // exactly seq 0..n-1
+    scan.hash = digest->checksum;
   }
-  s.reset();
-  r.checksum_held = hash;
-  if (!gap.empty()) {
-    r.reason = gap;
+  if (!r.used_digest) scan = scan_chunks(*impl_, run_id, true);
+  r.frames_held = scan.frames;
+  r.checksum_held = scan.hash;
+  if (!scan.gap.empty()) {
+    r.reason = scan.gap;
   } else if (r.frames_held != total_frames) {
     r.reason = (r.frames_held < total_frames ? "missing frames: " : "too many frames: ") + std::to_string(r.frames_held) +
                " held, the run end says " + std::to_string(total_frames);
-  } else if (hash != checksum) {
-    r.reason = "checksum mismatch: the chunks held hash to " + hex64(hash) + ", the run end says " + hex64(checksum);
+  } else if (scan.hash != checksum) {
+    r.reason = "checksum mismatch: the chunks held hash to " + hex64(scan.hash) + ", the run end says " + hex64(checksum);
   }
   r.status = r.reason.empty() ? RunStatus::complete : RunStatus::incomplete;
   const std::string now = now_utc();
@@ -404,6 +391,30 @@ bool Historian::stream_samples(const std::string& run_id,
   tx.commit();
   return true;
 }
+
+Historian::WriteBatch::WriteBatch(Historian* h) : h_(h) {
+  auto& impl = *h_->impl_;
+  impl.require_writer("write_batch");
+  if (impl.db.in_transaction()) throw std::logic_error("Historian::write_batch inside another transaction");
+  impl.batch_tx.emplace(impl.db, Transaction::Kind::write);
+}
+
+Historian::WriteBatch::~WriteBatch() {
+  if (h_) h_->impl_->batch_tx.reset();  // rolls back unless committed
+}
+
+void Historian::WriteBatch::commit() {
+  if (!h_) return;
+  auto& impl = *h_->impl_;
+  h_ = nullptr;
+  struct Reset {  // the batch is over whether COMMIT succeeds or not
+    Impl& i;
+    ~Reset() { i.batch_tx.reset(); }
+  } reset{impl};
+  impl.batch_tx->commit();
+}
+
+Historian::WriteBatch Historian::write_batch() { return WriteBatch(this); }
 
 Historian::Snapshot::Snapshot(Historian* h) : h_(h) {
   auto& impl = *h_->impl_;

@@ -109,6 +109,41 @@ CREATE TABLE jobs (
   updated_at  TEXT NOT NULL
 ) STRICT;
 )sql"},
+    // v2: monitoring snapshots (proto MonitoringSnapshot), one row per pump
+    // and agent time; arrays spread into columns so trends are plain SQL.
+    {2, R"sql(
+CREATE TABLE monitoring_snapshots (
+  pump_id                 TEXT NOT NULL REFERENCES pumps(pump_id),
+  time_ns                 INTEGER NOT NULL,
+  received_at             TEXT NOT NULL,
+  speed_rpm               REAL NOT NULL,
+  force_1x_amp_n_ax       REAL NOT NULL,
+  force_1x_amp_n_ay       REAL NOT NULL,
+  force_1x_amp_n_bx       REAL NOT NULL,
+  force_1x_amp_n_by       REAL NOT NULL,
+  force_1x_phase_rad_ax   REAL NOT NULL,
+  force_1x_phase_rad_ay   REAL NOT NULL,
+  force_1x_phase_rad_bx   REAL NOT NULL,
+  force_1x_phase_rad_by   REAL NOT NULL,
+  force_2x_amp_n_ax       REAL NOT NULL,
+  force_2x_amp_n_ay       REAL NOT NULL,
+  force_2x_amp_n_bx       REAL NOT NULL,
+  force_2x_amp_n_by       REAL NOT NULL,
+  force_2x_phase_rad_ax   REAL NOT NULL,
+  force_2x_phase_rad_ay   REAL NOT NULL,
+  force_2x_phase_rad_bx   REAL NOT NULL,
+  force_2x_phase_rad_by   REAL NOT NULL,
+  orbit_major_m_a         REAL NOT NULL,
+  orbit_major_m_b         REAL NOT NULL,
+  orbit_minor_m_a         REAL NOT NULL,
+  orbit_minor_m_b         REAL NOT NULL,
+  orbit_center_x_m_a      REAL NOT NULL,
+  orbit_center_x_m_b      REAL NOT NULL,
+  orbit_center_y_m_a      REAL NOT NULL,
+  orbit_center_y_m_b      REAL NOT NULL,
+  PRIMARY KEY (pump_id, time_ns)
+) STRICT, WITHOUT ROWID;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {
@@ -160,9 +195,12 @@ void migrate(Db& db, bool read_only) {
                        std::to_string(latest) + "; open it once with a writer (ambdiag serve) to migrate");
     return;
   }
+  // Every missing migration in one transaction: a reader opening the file
+  // meanwhile never sees it half way (e.g. at v1 while this writer needs v2).
+  Transaction tx(db, Transaction::Kind::write);
+  version = pragma_int(db, "PRAGMA user_version");  // another writer may have migrated meanwhile
+  if (version >= latest) return;
   for (const auto& m : kMigrations) {
-    Transaction tx(db, Transaction::Kind::write);
-    version = pragma_int(db, "PRAGMA user_version");  // another writer may have migrated meanwhile
     if (m.version <= version) continue;
     db.exec(m.sql, "migration");
     // PRAGMA takes no parameters; the values are this program's constants.
@@ -170,8 +208,8 @@ void migrate(Db& db, bool read_only) {
              std::to_string(kApplicationId))
                 .c_str(),
             "migration");
-    tx.commit();
   }
+  tx.commit();
 }
 
 }  // namespace ambdiag::storage::detail

@@ -123,18 +123,29 @@ std::span<const std::uint8_t> Stmt::col_blob(int i) const {
 }
 
 Transaction::Transaction(Db& db, Kind kind) : db_(&db) {
-  if (db.in_transaction()) return;  // joins the outer one
+  if (db.in_transaction()) {
+    if (kind == Kind::read) return;  // joins the outer one
+    db.exec("SAVEPOINT ambdiag_nested", "savepoint");
+    owns_ = savepoint_ = true;
+    return;
+  }
   db.exec(kind == Kind::write ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
   owns_ = true;
 }
 
 Transaction::~Transaction() {
-  if (owns_) sqlite3_exec(db_->get(), "ROLLBACK", nullptr, nullptr, nullptr);  // no throw from a destructor
+  if (!owns_) return;
+  // No throw from a destructor. A savepoint's rollback fails harmlessly if
+  // SQLite already rolled back the whole transaction (I/O error, disk full).
+  if (savepoint_)
+    sqlite3_exec(db_->get(), "ROLLBACK TO ambdiag_nested; RELEASE ambdiag_nested", nullptr, nullptr, nullptr);
+  else
+    sqlite3_exec(db_->get(), "ROLLBACK", nullptr, nullptr, nullptr);
 }
 
 void Transaction::commit() {
   if (!owns_) return;
-  db_->exec("COMMIT", "commit");
+  db_->exec(savepoint_ ? "RELEASE ambdiag_nested" : "COMMIT", "commit");
   owns_ = false;
 }
 

@@ -81,12 +81,14 @@ class Stmt {
 };
 
 // A transaction that rolls back in its destructor unless committed. Nested
-// use joins the outer transaction (neither begins nor commits).
+// in an open transaction, a read one joins it (neither begins nor commits)
+// and a write one is a SAVEPOINT: its own changes roll back on failure, the
+// outer transaction goes on (a WriteBatch of many all-or-nothing calls).
 class Transaction {
  public:
   enum class Kind { read, write };  // read: BEGIN (snapshot); write: BEGIN IMMEDIATE
   Transaction(Db& db, Kind kind);
-  Transaction(Transaction&& o) noexcept : db_(o.db_), owns_(o.owns_) { o.owns_ = false; }
+  Transaction(Transaction&& o) noexcept : db_(o.db_), owns_(o.owns_), savepoint_(o.savepoint_) { o.owns_ = false; }
   Transaction& operator=(Transaction&&) = delete;
   ~Transaction();
   void commit();
@@ -94,6 +96,7 @@ class Transaction {
  private:
   Db* db_;
   bool owns_ = false;
+  bool savepoint_ = false;
 };
 
 }  // namespace ambdiag::storage::detail

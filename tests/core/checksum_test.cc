@@ -21,6 +21,16 @@ TEST(Checksum, ChunkedEqualsWhole) {
   EXPECT_EQ(state, fnv1a64(s.data(), s.size()));
 }
 
+TEST(Checksum, PairEqualsTwoSeparateChecksums) {
+  const std::string s = "a block of a run, hashed on its own and as part of the run";
+  const std::uint64_t run_before = fnv1a64("earlier blocks", 14);
+  std::uint64_t block = kFnv1a64Init, run = run_before;
+  fnv1a64_pair(s.data(), s.size(), block, run);
+  EXPECT_EQ(block, fnv1a64(s.data(), s.size()));
+  EXPECT_EQ(run, fnv1a64(s.data(), s.size(), run_before));
+  EXPECT_NE(block, run);
+}
+
 TEST(Checksum, DetectsSwappedBlocks) {
   EXPECT_NE(fnv1a64("abcdef", 6), fnv1a64("defabc", 6));
 }

@@ -256,6 +256,60 @@ TEST_F(Rest, IdleKeepAliveConnectionsDoNotStarveANewClient) {
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(8));
 }
 
+TEST_F(Rest, MonitoringSnapshotsArePagedByTimeAsJson) {
+  const std::int64_t t0 = 1'795'003'200'000'000'000;  // 2026-11-18T12:00:00Z
+  std::vector<storage::MonitoringSnapshot> in(5);
+  for (size_t k = 0; k < in.size(); ++k) {
+    auto& s = in[k];
+    s.pump_id = "P-101";
+    s.time_ns = t0 + static_cast<std::int64_t>(k) * 250'000'000;  // every 0.25 s
+    s.speed_rpm = 2950 + static_cast<double>(k);
+    s.force_1x_amp_n = {1.5 + static_cast<double>(k), 2, 3, 4};
+    s.force_1x_phase_rad = {-1, 0, 1, 2};
+    s.orbit_major_m = {2e-5, 3e-5};
+    s.orbit_minor_m = {1e-5, 1e-5};
+    s.orbit_center_x_m = {-1e-6, 1e-6};
+  }
+  writer_->put_monitoring(in);
+  start();
+  auto c = client();
+  auto r = c.Get("/api/v1/pumps/P-101/monitoring?since=2026-11-18T12:00:00.25Z&limit=2");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  auto j = body(r);
+  EXPECT_EQ(j["pump_id"], "P-101");
+  ASSERT_EQ(j["snapshots"].size(), 2u);
+  const auto& first = j["snapshots"][0];
+  EXPECT_EQ(first["time"], "2026-11-18T12:00:00.25Z");
+  EXPECT_EQ(first["time_ns"], std::to_string(t0 + 250'000'000));
+  EXPECT_EQ(first["speed_rpm"], 2951.0);
+  EXPECT_EQ(first["force_1x"]["amp_n"]["ax"], 2.5);
+  EXPECT_EQ(first["force_1x"]["phase_rad"]["by"], 2.0);
+  EXPECT_EQ(first["orbit"]["b"]["major_m"], 3e-5);
+  EXPECT_EQ(first["orbit"]["a"]["center_x_m"], -1e-6);
+  EXPECT_EQ(j["next_since"], "2026-11-18T12:00:00.75Z");
+  // The next page, since given as nanoseconds: the rest, no next page.
+  r = c.Get(("/api/v1/pumps/P-101/monitoring?since=" + std::to_string(t0 + 750'000'000)).c_str());
+  ASSERT_TRUE(r);
+  j = body(r);
+  ASSERT_EQ(j["snapshots"].size(), 2u);
+  EXPECT_EQ(j["snapshots"][1]["time"], "2026-11-18T12:00:01Z");
+  EXPECT_FALSE(j.contains("next_since"));
+  r = c.Get("/api/v1/pumps/P-101/monitoring");  // no parameters: all of them
+  ASSERT_TRUE(r);
+  EXPECT_EQ(body(r)["snapshots"].size(), 5u);
+
+  r = c.Get("/api/v1/pumps/P-nope/monitoring");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 404);
+  for (const char* bad : {"?limit=0", "?limit=10001", "?limit=x", "?since=yesterday", "?since=2026-11-18T12:00:00"}) {
+    r = c.Get((std::string("/api/v1/pumps/P-101/monitoring") + bad).c_str());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << bad;
+    EXPECT_TRUE(body(r).contains("error")) << bad;
+  }
+}
+
 TEST(RestStart, RefusesAMissingOrForeignDatabase) {
   RestOptions opt;
   opt.db_path = (ambdiag::testing::scratch_dir() / "missing.db").string();

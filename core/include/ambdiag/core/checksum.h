@@ -15,4 +15,10 @@ inline constexpr std::uint64_t kFnv1a64Init = 14695981039346656037ull;
 // gives the same value as feeding it in one call.
 std::uint64_t fnv1a64(const void* data, std::size_t n_bytes, std::uint64_t state = kFnv1a64Init);
 
+// Continues two running checksums over the same bytes in one pass, e.g. a
+// block's own (from kFnv1a64Init) and its run's. Same values as two fnv1a64
+// calls at about the cost of one: FNV is a chain of dependent multiplies, and
+// two independent chains run side by side in the CPU.
+void fnv1a64_pair(const void* data, std::size_t n_bytes, std::uint64_t& state_a, std::uint64_t& state_b);
+
 }  // namespace ambdiag

@@ -1,14 +1,22 @@
-// The server's DDS side: receives runs from every agent, validates each
-// message, stores blocks in the historian in batched transactions and
-// acknowledges them after commit (docs/streaming.md).
+// The server's DDS side: receives runs and monitoring snapshots from every
+// agent, validates each message, stores them in the historian and
+// acknowledges blocks after commit (docs/streaming.md).
+//
+// Two threads, so that receiving and committing overlap: the receive thread
+// takes DDS samples, validates them (sizes, block checksum, finite samples,
+// run header) and queues the work; the commit thread stores everything
+// queued in one historian transaction (WriteBatch) and then sends the acks.
+// The queue is bounded in bytes: when it is full the receive thread stops
+// taking blocks, the DDS reader (max 256 samples) fills and pushes back on
+// the agents' writers, and the agents keep the backlog in their spools.
 //
 // A bad message (incompatible version, wrong sizes, oversized payload,
 // checksum mismatch, non-finite samples, a header that is not a valid
-// run.json, a block conflicting with one already stored) is rejected,
-// logged and counted by reason; ingest keeps running. A run whose agent
-// stops sending heartbeats and data for `agent_timeout` before its run end
-// is marked incomplete, as is a run that ends aborted or fails the
-// historian's count/checksum check.
+// run.json, a block conflicting with one already stored, an invalid
+// monitoring snapshot) is rejected, logged and counted by reason; ingest
+// keeps running. A run whose agent stops sending heartbeats and data for
+// `agent_timeout` before its run end is marked incomplete, as is a run that
+// ends aborted or fails the historian's count/checksum check.
 #pragma once
 
 #include <atomic>
@@ -32,8 +40,10 @@ struct IngestOptions {
   int domain = 0;
   std::vector<std::string> partitions{"*"};  // every site
   std::chrono::milliseconds agent_timeout{10000};
-  size_t max_batch_blocks = 256;  // blocks per historian transaction
-  bool verbose = true;            // log runs and rejections on stderr
+  size_t max_batch_blocks = 512;        // blocks per historian transaction, at most
+  size_t max_batch_bytes = 16u << 20;   // payload bytes per transaction, at most
+  size_t max_queue_bytes = 16u << 20;   // received, validated, not yet committed
+  bool verbose = true;                  // log runs and rejections on stderr
   // Added to every commit: emulates a slow disk (bench_stream's memory check).
   std::chrono::milliseconds commit_delay{0};
 };
@@ -41,9 +51,14 @@ struct IngestOptions {
 // Counters, readable from any thread (REST health).
 struct IngestCounters {
   std::atomic<int64_t> headers{0}, blocks_received{0}, blocks_stored{0}, blocks_duplicate{0}, bytes_stored{0},
-      commits{0}, runs_complete{0}, runs_incomplete{0}, blocks_orphan{0}, acks_sent{0}, heartbeats{0};
+      commits{0}, runs_complete{0}, runs_incomplete{0}, blocks_orphan{0}, acks_sent{0}, heartbeats{0},
+      monitoring_stored{0}, monitoring_duplicate{0}, storage_errors{0}, queue_bytes{0}, queue_peak_bytes{0},
+      runs_verified_from_digest{0};
+  // Steady-clock ns of the first block received and of the last commit that
+  // stored blocks or ended a run: their difference is the streaming span.
+  std::atomic<int64_t> first_block_ns{0}, last_commit_ns{0};
   // Rejections by reason: version, oversized, size, checksum, non_finite,
-  // header, conflict, run_end.
+  // header, conflict, run_end, monitoring.
   void reject(const std::string& reason);
   int64_t rejected_total() const;
   nlohmann::json to_json() const;
@@ -61,8 +76,10 @@ class Ingest {
   Ingest(const Ingest&) = delete;
   Ingest& operator=(const Ingest&) = delete;
 
-  // Receives until stop() is called (from any thread or a signal handler
-  // via a flag checked every 100 ms).
+  // Receives until `stop_flag` is set (checked every 100 ms, so a signal
+  // handler may set it), then commits what is queued and returns. Runs the
+  // commit thread itself; a StorageError of a commit is logged and counted,
+  // nothing of that batch is acknowledged (the agents re-send it).
   void run(const std::atomic<bool>& stop_flag);
   const IngestCounters& counters() const { return counters_; }
   nlohmann::json health() const { return counters_.to_json(); }

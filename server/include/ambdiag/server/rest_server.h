@@ -3,6 +3,7 @@
 //   GET /api/v1/health
 //   GET /api/v1/pumps
 //   GET /api/v1/pumps/{pump_id}/runs
+//   GET /api/v1/pumps/{pump_id}/monitoring?since=TIME&limit=N   monitoring snapshots
 //   GET /api/v1/runs/{run_id}              run_id URL-encoded ('/' as %2F, ':' as %3A)
 //   GET /api/v1/runs/{run_id}/samples.f32  application/octet-stream, the exact bytes
 //

@@ -29,6 +29,9 @@
 #include <string>
 #include <vector>
 
+#include "ambdiag/core/checksum.h"
+#include "ambdiag/storage/monitoring.h"
+
 namespace ambdiag::storage {
 
 // The database failed (I/O error, disk full, locked past the busy timeout).
@@ -102,6 +105,17 @@ struct EndResult {
   std::string reason;  // empty when complete
   std::int64_t frames_held = 0;
   std::uint64_t checksum_held = 0;  // FNV-1a 64 of the chunks held, in seq order
+  bool used_digest = false;         // checksum_held came from the caller's HeldDigest
+};
+
+// What a writer knows of chunks it put itself: the FNV-1a 64 of chunks
+// 0..n_chunks-1 in seq order, computed over the exact bytes it passed to
+// put_chunks calls that succeeded (stored, or identical duplicates). With it
+// end_run need not read the blobs back (a run of 1 GB costs seconds to
+// re-read); it is used only if the run holds exactly chunks 0..n_chunks-1.
+struct HeldDigest {
+  std::int64_t n_chunks = 0;
+  std::uint64_t checksum = kFnv1a64Init;
 };
 
 class Historian {
@@ -136,11 +150,36 @@ class Historian {
   // database. Sets `complete` or `incomplete` with the first problem found.
   // Calling it again (e.g. after late chunks of an incomplete run) checks
   // again; on a complete run with the same figures it is a no-op, with other
-  // figures it throws.
-  EndResult end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum);
+  // figures it throws. With a `digest` that covers every chunk held, the
+  // checksum is the digest's and only the chunk index is read.
+  EndResult end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum,
+                    std::optional<HeldDigest> digest = std::nullopt);
   // For a run whose end will not come (agent gone): `incomplete` with the
   // reason. A complete run stays complete. Returns the status afterwards.
   RunStatus mark_incomplete(const std::string& run_id, const std::string& reason);
+  // Snapshots in one transaction, each checked with validate() first
+  // (InputError naming the field; nothing stored then). Registers unknown
+  // pumps. A (pump_id, time_ns) already held is a duplicate: counted, ignored.
+  PutResult put_monitoring(std::span<const MonitoringSnapshot> snapshots);
+
+  // Groups the write calls made while it lives into one transaction: one
+  // commit for many calls (the server's ingest commits everything it
+  // received in one go). Each call inside stays all or nothing on its own (a
+  // savepoint), so a refused call does not undo the others. Destroyed
+  // without commit(): all of it rolls back. One at a time per Historian.
+  class WriteBatch {
+   public:
+    WriteBatch(WriteBatch&& o) noexcept : h_(o.h_) { o.h_ = nullptr; }
+    WriteBatch& operator=(WriteBatch&&) = delete;
+    ~WriteBatch();
+    void commit();  // throws StorageError; the batch is then rolled back
+
+   private:
+    friend class Historian;
+    explicit WriteBatch(Historian* h);
+    Historian* h_;
+  };
+  WriteBatch write_batch();
 
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
@@ -148,6 +187,10 @@ class Historian {
   std::vector<RunInfo> list_runs(const std::string& pump_id);  // by started_at
   std::optional<RunInfo> find_run(const std::string& run_id);
   std::int64_t count_runs();
+  // Snapshots of the pump with time_ns >= since_ns, oldest first, at most
+  // `limit` (>= 1).
+  std::vector<MonitoringSnapshot> list_monitoring(const std::string& pump_id, std::int64_t since_ns,
+                                                  std::int64_t limit);
   // The chunks held, concatenated in seq order: for a complete run exactly
   // the recording's samples.f32. Throws InputError for an unknown run.
   std::string read_samples(const std::string& run_id);

@@ -1,0 +1,205 @@
+#include "ingest_commit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <span>
+#include <thread>
+
+#include "ambdiag/core/error.h"
+
+namespace ambdiag::server::detail {
+
+namespace {
+
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+void log_line(bool verbose, const std::string& msg) {
+  if (!verbose) return;
+  const std::string line = "ambdiag serve: " + msg + "\n";
+  std::fputs(line.c_str(), stderr);
+}
+
+void Committer::reject(const std::string& reason, const std::string& run_id, const std::string& what) {
+  counters_.reject(reason);
+  log_line(opt_.verbose, "rejected (" + reason + ") run '" + run_id + "': " + what);
+}
+
+void Committer::send(const Ack& a) {
+  ambdiag_stream_Ack m{};
+  m.protocol_version = stream::kProtocolVersion;
+  m.run_id = const_cast<char*>(a.run_id.c_str());
+  m.first_seq = a.first;
+  m.last_seq = a.last;
+  m.state = a.state;
+  m.message = const_cast<char*>(a.message.c_str());
+  if (ack_writer_.write(m)) ++counters_.acks_sent;
+}
+
+void Committer::ack_ranges(const std::string& run_id, std::vector<int64_t> seqs) {
+  std::sort(seqs.begin(), seqs.end());
+  for (size_t i = 0; i < seqs.size();) {
+    size_t j = i;
+    while (j + 1 < seqs.size() && seqs[j + 1] <= seqs[j] + 1) ++j;
+    send({run_id, seqs[i], seqs[j], ambdiag_stream_ACK_STORED, ""});
+    i = j + 1;
+  }
+}
+
+Committer::Chain& Committer::chain(Staged& st, const std::string& run_id) {
+  auto it = st.chains.find(run_id);
+  if (it != st.chains.end()) return it->second;
+  const auto held = chains_.find(run_id);
+  return st.chains[run_id] = held != chains_.end() ? held->second : Chain{};
+}
+
+void Committer::apply(BeginRun& w, Staged& st) {
+  try {
+    h_.begin_run(w.header);
+    ++st.headers;
+  } catch (const InputError& e) {
+    reject("header", w.header.run_id, e.what());
+  }
+}
+
+// One put_chunks (a savepoint) for the item; if a block conflicts with one
+// already stored, the item is stored block by block to isolate it.
+void Committer::apply(Blocks& w, Staged& st) {
+  std::vector<storage::Chunk> chunks;
+  chunks.reserve(w.blocks.size());
+  for (const auto& b : w.blocks) chunks.push_back({b.seq, b.first_frame, b.n_frames, b.bytes});
+  std::vector<char> ok(w.blocks.size(), 0);
+  auto count = [&](const storage::PutResult& r, std::span<const storage::Chunk> c) {
+    st.blocks_stored += r.stored;
+    st.blocks_duplicate += r.duplicates;
+    if (r.stored > 0)
+      for (const auto& x : c) st.bytes_stored += static_cast<int64_t>(x.bytes.size());
+  };
+  try {
+    count(h_.put_chunks(w.run_id, chunks), chunks);
+    std::fill(ok.begin(), ok.end(), 1);
+  } catch (const InputError&) {
+    for (size_t i = 0; i < chunks.size(); ++i) {
+      try {
+        count(h_.put_chunks(w.run_id, std::span(&chunks[i], 1)), std::span(&chunks[i], 1));
+        ok[i] = 1;
+      } catch (const InputError& e) {
+        reject("conflict", w.run_id, e.what());
+      }
+    }
+  }
+  Chain& c = chain(st, w.run_id);
+  auto& seqs = st.stored_seqs[w.run_id];
+  for (size_t i = 0; i < w.blocks.size(); ++i) {
+    if (!ok[i]) continue;
+    const auto& b = w.blocks[i];
+    seqs.push_back(b.seq);
+    // Stored (or held with the same bytes) right after the chain's end:
+    // the chain now covers it.
+    if (b.chained && b.seq == c.next_seq && b.run_hash_before == c.hash) c = {b.seq + 1, b.run_hash_after};
+  }
+  st.stream_progress = true;
+}
+
+void Committer::verdict(Staged& st, const std::string& run_id, std::optional<storage::RunStatus> before,
+                        storage::RunStatus after, const std::string& reason) {
+  using storage::RunStatus;
+  st.ended[run_id] = true;
+  st.stream_progress = true;
+  if (after == RunStatus::complete) {
+    if (before != RunStatus::complete) ++st.complete, st.log.push_back("run " + run_id + ": complete");
+    st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_COMPLETE, "complete: count and checksum verified"});
+  } else {
+    if (before == RunStatus::receiving) ++st.incomplete, st.log.push_back("run " + run_id + ": incomplete: " + reason);
+    st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_INCOMPLETE, "incomplete: " + reason});
+  }
+}
+
+void Committer::apply(EndRun& w, Staged& st) {
+  try {
+    const auto info = h_.find_run(w.run_id);
+    const auto before = info ? std::optional(info->status) : std::nullopt;
+    if (w.aborted) {
+      const auto after = h_.mark_incomplete(w.run_id, "agent aborted: " + w.reason);
+      verdict(st, w.run_id, before, after, "aborted: " + w.reason);
+      return;
+    }
+    const Chain& c = chain(st, w.run_id);
+    const storage::EndResult r =
+        h_.end_run(w.run_id, w.total_frames, w.checksum, storage::HeldDigest{c.next_seq, c.hash});
+    if (r.used_digest) ++st.from_digest;
+    verdict(st, w.run_id, before, r.status, r.reason);
+  } catch (const InputError& e) {
+    reject("run_end", w.run_id, e.what());
+    st.verdicts.push_back({w.run_id, -1, -1, ambdiag_stream_ACK_REJECTED, e.what()});
+  }
+}
+
+void Committer::apply(MarkIncomplete& w, Staged& st) {
+  try {
+    const auto info = h_.find_run(w.run_id);
+    // Completed meanwhile (its end was queued before the timeout): nothing to do.
+    if (!info || info->status == storage::RunStatus::complete) return;
+    verdict(st, w.run_id, info->status, h_.mark_incomplete(w.run_id, w.reason), w.reason);
+  } catch (const InputError& e) {
+    log_line(opt_.verbose, "run " + w.run_id + ": " + e.what());
+  }
+}
+
+void Committer::apply(Monitoring& w, Staged& st) {
+  // Validated by the receive thread; one by one so a duplicate key or a
+  // refused one does not hold back the others.
+  for (const auto& s : w.snapshots) {
+    try {
+      const auto r = h_.put_monitoring(std::span(&s, 1));
+      st.monitoring_stored += r.stored;
+      st.monitoring_duplicate += r.duplicates;
+    } catch (const InputError& e) {
+      reject("monitoring", s.pump_id, e.what());
+    }
+  }
+}
+
+void Committer::commit(std::vector<Work>& batch) {
+  Staged st;
+  try {
+    auto tx = h_.write_batch();
+    for (auto& w : batch) std::visit([&](auto& item) { apply(item, st); }, w);
+    if (opt_.commit_delay.count() > 0) std::this_thread::sleep_for(opt_.commit_delay);
+    tx.commit();
+  } catch (const storage::StorageError& e) {
+    ++counters_.storage_errors;
+    log_line(true, std::string("commit failed, nothing of this batch acknowledged (the agents re-send it): ") +
+                       e.what());
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // a full disk or a lock: do not spin
+    return;
+  }
+  // Committed: now the batch counts, and the agents may drop what it held.
+  ++counters_.commits;
+  for (auto& [run_id, c] : st.chains) {
+    if (st.ended.count(run_id))
+      chains_.erase(run_id);
+    else if (c.next_seq > 0)  // a run re-sent after its end starts no chain of its own
+      chains_[run_id] = c;
+  }
+  counters_.headers += st.headers;
+  counters_.blocks_stored += st.blocks_stored;
+  counters_.blocks_duplicate += st.blocks_duplicate;
+  counters_.bytes_stored += st.bytes_stored;
+  counters_.runs_complete += st.complete;
+  counters_.runs_incomplete += st.incomplete;
+  counters_.monitoring_stored += st.monitoring_stored;
+  counters_.monitoring_duplicate += st.monitoring_duplicate;
+  counters_.runs_verified_from_digest += st.from_digest;
+  if (st.stream_progress) counters_.last_commit_ns = steady_ns();
+  for (auto& [run_id, seqs] : st.stored_seqs) ack_ranges(run_id, std::move(seqs));
+  for (const auto& v : st.verdicts) send(v);
+  for (const auto& l : st.log) log_line(opt_.verbose, l);
+}
+
+}  // namespace ambdiag::server::detail

@@ -1,0 +1,76 @@
+// Private to ambdiag_ingest: the commit thread's side. Stores a batch of
+// queued work in one historian transaction, then acknowledges: acks and run
+// verdicts leave only after COMMIT returned.
+#pragma once
+
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "ambdiag/proto/stream.h"
+#include "ambdiag/server/ingest.h"
+#include "ingest_work.h"
+
+namespace ambdiag::server::detail {
+
+// One line on stderr when `verbose` (one write, so the two threads' lines
+// do not interleave).
+void log_line(bool verbose, const std::string& msg);
+
+class Committer {
+ public:
+  Committer(storage::Historian& historian, const IngestOptions& opt, IngestCounters& counters,
+            const dds::Writer<ambdiag_stream_Ack>& ack_writer)
+      : h_(historian), opt_(opt), counters_(counters), ack_writer_(ack_writer) {}
+
+  // All of `batch` in one transaction. A refused item (conflicting chunk,
+  // bad header, ...) is rejected and counted and the rest goes on; a
+  // StorageError rolls everything back: counted, logged, nothing
+  // acknowledged.
+  void commit(std::vector<Work>& batch);
+
+ private:
+  // The run's FNV-1a 64 over chunks 0..next_seq-1 as this server stored
+  // them; lets end_run skip reading the run back (storage::HeldDigest).
+  struct Chain {
+    int64_t next_seq = 0;
+    uint64_t hash = kFnv1a64Init;
+  };
+  struct Ack {
+    std::string run_id;
+    int64_t first, last;
+    ambdiag_stream_AckState state;
+    std::string message;
+  };
+  // What a batch did, applied after its commit.
+  struct Staged {
+    std::unordered_map<std::string, Chain> chains;  // runs touched: their chains after the batch
+    std::unordered_map<std::string, bool> ended;    // runs with a verdict in this batch
+    std::unordered_map<std::string, std::vector<int64_t>> stored_seqs;
+    std::vector<Ack> verdicts;
+    std::vector<std::string> log;
+    int64_t blocks_stored = 0, blocks_duplicate = 0, bytes_stored = 0, headers = 0, complete = 0, incomplete = 0,
+            monitoring_stored = 0, monitoring_duplicate = 0, from_digest = 0;
+    bool stream_progress = false;  // blocks stored or a run ended
+  };
+
+  void apply(BeginRun& w, Staged& st);
+  void apply(Blocks& w, Staged& st);
+  void apply(EndRun& w, Staged& st);
+  void apply(MarkIncomplete& w, Staged& st);
+  void apply(Monitoring& w, Staged& st);
+  Chain& chain(Staged& st, const std::string& run_id);
+  void verdict(Staged& st, const std::string& run_id, std::optional<storage::RunStatus> before,
+               storage::RunStatus after, const std::string& reason);
+  void reject(const std::string& reason, const std::string& run_id, const std::string& what);
+  void send(const Ack& a);
+  void ack_ranges(const std::string& run_id, std::vector<int64_t> seqs);
+
+  storage::Historian& h_;
+  const IngestOptions& opt_;
+  IngestCounters& counters_;
+  const dds::Writer<ambdiag_stream_Ack>& ack_writer_;
+  std::unordered_map<std::string, Chain> chains_;
+};
+
+}  // namespace ambdiag::server::detail

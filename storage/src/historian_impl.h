@@ -1,0 +1,64 @@
+// Private to ambdiag_storage: the Historian's connection, its cached
+// statements and the helpers historian*.cc share.
+#pragma once
+
+#include <bit>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/storage/historian.h"
+#include "sqlite_db.h"
+
+namespace ambdiag::storage {
+
+using detail::Stmt;
+using detail::Transaction;
+
+std::string now_utc();  // server clock, ISO 8601 UTC with milliseconds
+std::string hex64(std::uint64_t v);
+RunStatus status_from_text(const std::string& s);
+inline std::string quoted(const std::string& id) { return "'" + id + "'"; }
+
+struct Historian::Impl {
+  detail::Db db;
+  bool read_only;
+  int snapshot_depth = 0;
+  std::optional<Transaction> snapshot_tx;
+  std::optional<Transaction> batch_tx;  // an open WriteBatch
+  std::unordered_map<const char*, Stmt> stmts;  // keyed by the SQL literal's address
+
+  Impl(detail::Db d, bool ro) : db(std::move(d)), read_only(ro) {}
+
+  // A cached prepared statement, reset and ready for bindings. `sql` must be
+  // a string literal; one statement is never used twice at once.
+  Stmt& stmt(const char* sql) {
+    auto it = stmts.find(sql);
+    if (it == stmts.end()) it = stmts.emplace(sql, Stmt(db, sql)).first;
+    return it->second.reset();
+  }
+
+  void require_writer(const char* what) const {
+    if (read_only) throw std::logic_error(std::string("Historian::") + what + " on a read-only connection");
+  }
+
+  struct RunState {
+    int n_channels;
+    RunStatus status;
+    std::optional<std::int64_t> expected_frames;
+    std::optional<std::uint64_t> expected_checksum;
+  };
+  RunState run_state(const std::string& run_id, const char* what) {
+    auto& s = stmt("SELECT n_channels, status, expected_frames, expected_checksum FROM runs WHERE run_id = ?");
+    s.bind(1, run_id);
+    if (!s.step()) throw InputError(std::string(what) + ": unknown run " + quoted(run_id));
+    RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt};
+    if (auto c = s.col_opt_int(3)) st.expected_checksum = std::bit_cast<std::uint64_t>(*c);
+    s.reset();
+    return st;
+  }
+};
+
+}  // namespace ambdiag::storage
