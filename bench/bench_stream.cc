@@ -25,6 +25,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <regex>
 #include <sstream>
@@ -110,9 +111,22 @@ struct Env {
   }
 };
 
+// CPU seconds (user + sys) a running process used so far (/proc/PID/stat).
+double process_cpu_s(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::istringstream in(stat.substr(stat.rfind(')') + 2));  // fields from 3 (state) on
+  std::string field;
+  double ticks = 0;
+  for (int i = 3; i <= 15 && in >> field; ++i)
+    if (i == 14 || i == 15) ticks += std::stod(field);  // utime, stime
+  return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
 struct E2e {
-  double mb_per_s = 0, wall_s = 0, cpu_s = 0, server_rss_mb = 0;
+  double mb_per_s = 0, wall_s = 0, cpu_s = 0, server_rss_mb = 0, server_cpu_s = 0;
   double span_s = 0, span_mb_per_s = 0;  // first block received -> last commit (server's figure)
+  std::string queue_peak;                 // "N bytes", from the server's last line
   int failed = 0;
 };
 
@@ -154,11 +168,18 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
   }
   out.wall_s = secs(Clock::now() - t0);
   out.server_rss_mb = std::max(rss, peak_rss_mb(server->pid()));
+  out.server_cpu_s = process_cpu_s(server->pid());
   server->signal(SIGTERM);
   server->wait(30s);
   out.cpu_s = children_cpu_s() - cpu0;
   out.mb_per_s = bytes / out.wall_s / 1e6;
   out.span_s = span_from_log(server->log());
+  {
+    const std::regex re(R"(queue peak ([0-9]+ bytes))");
+    std::smatch m;
+    const std::string log = server->log();
+    if (std::regex_search(log, m, re)) out.queue_peak = m[1];
+  }
   out.span_mb_per_s = out.span_s > 0 ? bytes / out.span_s / 1e6 : 0;
   return out;
 }
@@ -267,9 +288,9 @@ int main(int argc, char** argv) {
     fast = end_to_end(e, run_dirs, bytes, true);
     std::printf("rep %d: end to end (%d agents --fast -> serve -> committed, verified): %.1f MB/s from the first "
                 "block received to the last commit (%.2f s); %.1f MB/s from the agents' start (%.2f s wall); "
-                "CPU %.2f s (user+sys, all processes); server peak RSS %.0f MB; failed %d\n",
+                "CPU %.2f s (user+sys, all processes; server %.2f s); server peak RSS %.0f MB; failed %d\n",
                 rep, agents, fast.span_mb_per_s, fast.span_s, fast.mb_per_s, fast.wall_s, fast.cpu_s,
-                fast.server_rss_mb, fast.failed);
+                fast.server_cpu_s, fast.server_rss_mb, fast.failed);
     double st_cpu = 0;
     const double st = storage_ceiling(e.dir, runs, &st_cpu);
     std::printf("rep %d: ceiling Historian::put_chunks, 256 chunks per transaction: %.1f MB/s (%.2f s wall, CPU %.2f s)"
@@ -309,16 +330,19 @@ int main(int argc, char** argv) {
     const E2e paced = end_to_end(e, live, live_bytes, false);
     failed_total += paced.failed;
     std::printf("live: %d pumps paced at 8 kHz x 15 ch for %.0f s: all committed after %.2f s wall (real time %.0f s), "
-                "CPU %.2f s (agents + server), server peak RSS %.0f MB, failed %d\n",
-                pumps, live_s, paced.wall_s, live_s, paced.cpu_s, paced.server_rss_mb, paced.failed);
+                "CPU %.2f s (agents + server; server alone %.2f s = %.1f ms per pump-second), server peak RSS %.0f "
+                "MB, failed %d\n",
+                pumps, live_s, paced.wall_s, live_s, paced.cpu_s, paced.server_cpu_s,
+                1000.0 * paced.server_cpu_s / (pumps * live_s), paced.server_rss_mb, paced.failed);
   }
 
   // Slow disk: every historian commit delayed 50 ms; memory must stay bounded.
   {
     const E2e slow = end_to_end(e, run_dirs, bytes, true, {"--bench-commit-delay-ms", "50"});
     failed_total += slow.failed;
-    std::printf("slow disk (+50 ms per commit): %.1f MB/s, server peak RSS %.0f MB (fast disk: %.0f MB), failed %d\n",
-                slow.span_mb_per_s, slow.server_rss_mb, fast.server_rss_mb, slow.failed);
+    std::printf("slow disk (+50 ms per commit): %.1f MB/s, server peak RSS %.0f MB (fast disk: %.0f MB), queue peak "
+                "%s, failed %d\n",
+                slow.span_mb_per_s, slow.server_rss_mb, fast.server_rss_mb, slow.queue_peak.c_str(), slow.failed);
   }
   fs::remove_all(e.dir);
   std::printf("loss: %s\n", failed_total == 0 ? "none (every run verified complete: count and checksum)"

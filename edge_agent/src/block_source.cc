@@ -4,7 +4,6 @@
 #include <bit>
 #include <stdexcept>
 
-#include "ambdiag/core/checksum.h"
 
 namespace ambdiag::agent {
 
@@ -26,7 +25,7 @@ std::optional<Block> RecordingSource::next() {
   b.n_frames = static_cast<uint32_t>(n);
   const auto* first = reinterpret_cast<const char*>(run_.samples.data() + static_cast<size_t>(next_frame_) * n_ch);
   b.payload.assign(first, static_cast<size_t>(n) * n_ch * sizeof(float));
-  b.checksum = fnv1a64(b.payload.data(), b.payload.size());
+  // b.checksum: set by the streamer, in the same pass as the run's checksum.
   next_frame_ += n;
   return b;
 }

@@ -156,6 +156,10 @@ class RunStream {
         source_done_ = true;
         break;
       }
+      // The block's checksum and the run's, in one pass over the payload.
+      uint64_t block_sum = kFnv1a64Init, run_sum = checksum_;
+      fnv1a64_pair(pending_->payload.data(), pending_->payload.size(), block_sum, run_sum);
+      pending_->checksum = block_sum;
       if (!spool_.put(*pending_)) {
         if (!spool_full_)
           std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
@@ -166,7 +170,7 @@ class RunStream {
       }
       if (spool_full_) std::fprintf(stderr, "ambdiag-agent: spool has room again: source resumed\n");
       spool_full_ = false;
-      checksum_ = fnv1a64(pending_->payload.data(), pending_->payload.size(), checksum_);
+      checksum_ = run_sum;
       acked_.push_back(0);
       ++produced_;
       pending_.reset();

@@ -1,11 +1,11 @@
 // The historian's write batches, the end-of-run digest and schema v2
 // (migration from v1) on real SQLite files.
 #include <gtest/gtest.h>
-#include <sqlite3.h>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
 #include "historian_fixture.h"
+#include "sqlite_raw.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -18,25 +18,6 @@ using ambdiag::testing::run_json_text;
 using ambdiag::testing::samples_bytes;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
-
-void raw_exec(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
-  sqlite3_close(db);
-}
-
-std::int64_t raw_int(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  EXPECT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  sqlite3_stmt* s = nullptr;
-  EXPECT_EQ(sqlite3_prepare_v2(db, sql, -1, &s, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
-  std::int64_t v = -1;
-  if (sqlite3_step(s) == SQLITE_ROW) v = sqlite3_column_int64(s, 0);
-  sqlite3_finalize(s);
-  sqlite3_close(db);
-  return v;
-}
 
 RunHeader header(const std::string& run_id, int n_channels) {
   return run_header_from_json(run_json_text(run_id, n_channels));
@@ -143,9 +124,9 @@ TEST(HistorianSchema, AVersion1FileIsMigratedToVersion2KeepingItsRuns) {
     EXPECT_EQ(h.find_run("P-7/old")->status, RunStatus::complete);
     EXPECT_EQ(h.read_samples("P-7/old"), as_string(a));
   }
-  EXPECT_EQ(raw_int(path, "PRAGMA user_version"), 2);
+  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), 2);
   EXPECT_EQ(Historian::schema_version(), 2);
-  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'monitoring_snapshots'"), 1);
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'monitoring_snapshots'"), 1);
   auto r = Historian::open(path, Historian::Mode::read);
   EXPECT_TRUE(r.list_monitoring("P-7", 0, 10).empty());
 }

@@ -11,6 +11,7 @@
 
 #include "ambdiag/core/error.h"
 #include "historian_fixture.h"
+#include "sqlite_raw.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -23,26 +24,6 @@ using ambdiag::testing::run_json_text;
 using ambdiag::testing::samples_bytes;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
-
-// Runs one SQL statement with the plain C API, to inspect or tamper with a file.
-std::int64_t raw_query_int(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  EXPECT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  sqlite3_stmt* s = nullptr;
-  EXPECT_EQ(sqlite3_prepare_v2(db, sql, -1, &s, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
-  std::int64_t v = -1;
-  if (sqlite3_step(s) == SQLITE_ROW) v = sqlite3_column_int64(s, 0);
-  sqlite3_finalize(s);
-  sqlite3_close(db);
-  return v;
-}
-
-void raw_exec(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
-  sqlite3_close(db);
-}
 
 struct TestRun {
   RunHeader header;
@@ -332,11 +313,12 @@ TEST(Historian, RefusesACorruptDatabase) {
     h.put_chunks("P-7/n", cut_chunks(run.bytes, 4, 100));
   }
   raw_exec(path, "PRAGMA wal_checkpoint(TRUNCATE)");
+  const auto page = static_cast<size_t>(raw_query_int(path, "PRAGMA page_size"));
   {
     // Overwrite pages 2.. with garbage; the header page stays valid.
     std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
-    f.seekp(4096);
-    const std::string junk(4096 * 8, '\x5a');
+    f.seekp(static_cast<std::streamoff>(page));
+    const std::string junk(page * 8, '\x5a');
     f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
   }
   EXPECT_THROW(

@@ -40,9 +40,17 @@ struct IngestOptions {
   int domain = 0;
   std::vector<std::string> partitions{"*"};  // every site
   std::chrono::milliseconds agent_timeout{10000};
-  size_t max_batch_blocks = 512;        // blocks per historian transaction, at most
-  size_t max_batch_bytes = 16u << 20;   // payload bytes per transaction, at most
+  // A transaction takes what is queued, up to these. Smaller than what the
+  // agents have in flight (4 x 128 blocks of 30 KiB = 15 MiB), so that while
+  // one batch commits the next arrives: a batch as large as everything in
+  // flight would leave the agents waiting for acks during every commit.
+  size_t max_batch_blocks = 256;        // blocks per historian transaction, at most
+  size_t max_batch_bytes = 4u << 20;    // payload bytes per transaction, at most
   size_t max_queue_bytes = 16u << 20;   // received, validated, not yet committed
+  // Commits start at most this often unless half a batch is waiting: paced
+  // pumps send 16 blocks/s each, and a transaction per block costs the
+  // server more CPU than the block; acks come at most this much later.
+  std::chrono::milliseconds min_commit_interval{20};
   bool verbose = true;                  // log runs and rejections on stderr
   // Added to every commit: emulates a slow disk (bench_stream's memory check).
   std::chrono::milliseconds commit_delay{0};
