@@ -33,6 +33,23 @@ Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd&
 // and imaginary rows: a = [Re(w phi); Im(w phi)], y = [Re(w h); Im(w h)].
 void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y);
 
+// Least squares through the normal equations of a tall real matrix A:
+// (A^T A) x = b, Cholesky of the column-scaled Gram matrix (its condition is
+// that of A squared; the scaled partial-fraction basis keeps it far from
+// 1e16), with a pivoted QR of A^T A as the fallback. Several times faster
+// than a Householder QR of A, and A^T A is what the Kaufman Jacobian needs.
+class GramSolver {
+ public:
+  explicit GramSolver(const Eigen::MatrixXd& a);
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& b) const;
+
+ private:
+  Eigen::VectorXd scale_;
+  Eigen::MatrixXd gram_;
+  Eigen::MatrixXd chol_;
+  bool ok_ = false;
+};
+
 // Residue of pole k from the real coefficients of its basis columns.
 std::vector<cd> residues_from_coefficients(const std::vector<cd>& poles, const Eigen::VectorXd& c);
 

@@ -71,9 +71,8 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
   const cd j(0.0, 1.0);
   for (int e = 0; e < E; ++e) {
     stack_weighted(data, phi, e, a, y);
-    Eigen::HouseholderQR<Eigen::MatrixXd> qr(a);
-    const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(2 * L, nc);
-    const Eigen::VectorXd c = qr.solve(y);
+    const GramSolver gram(a);
+    const Eigen::VectorXd c = gram.solve(a.transpose() * y);
     const Eigen::VectorXd resid = a * c - y;
     out.linear.cost += resid.squaredNorm();
     const auto r = residues_from_coefficients(poles, c);
@@ -107,10 +106,11 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
         dmat(L + l, npp) = -dy.imag();
       }
     }
-    // Kaufman: J = P_perp D, with P_perp = I - Q Q^T.
-    const Eigen::MatrixXd qtd = q.transpose() * dmat;
-    out.jtj.noalias() += dmat.transpose() * dmat - qtd.transpose() * qtd;
-    out.jtr.noalias() += dmat.transpose() * resid;  // Q^T resid = 0 at the LS solution
+    // Kaufman: J = P_perp D, P_perp = I - A (A^T A)^-1 A^T, so
+    // J^T J = D^T D - (A^T D)^T (A^T A)^-1 (A^T D).
+    const Eigen::MatrixXd atd = a.transpose() * dmat;
+    out.jtj.noalias() += dmat.transpose() * dmat - atd.transpose() * gram.solve(atd);
+    out.jtr.noalias() += dmat.transpose() * resid;  // A^T resid = 0 at the LS solution
   }
   return out;
 }

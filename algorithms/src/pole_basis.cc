@@ -59,6 +59,26 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
   return p;
 }
 
+GramSolver::GramSolver(const Eigen::MatrixXd& a) {
+  scale_ = a.colwise().norm().transpose().cwiseMax(1e-300).cwiseInverse();
+  gram_ = scale_.asDiagonal() * (a.transpose() * a) * scale_.asDiagonal();
+  Eigen::LLT<Eigen::MatrixXd> llt(gram_);
+  ok_ = llt.info() == Eigen::Success;
+  if (ok_) chol_ = llt.matrixL();
+}
+
+Eigen::MatrixXd GramSolver::solve(const Eigen::MatrixXd& b) const {
+  const Eigen::MatrixXd sb = scale_.asDiagonal() * b;
+  Eigen::MatrixXd x;
+  if (ok_) {
+    x = chol_.triangularView<Eigen::Lower>().solve(sb);
+    chol_.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
+  } else {
+    x = gram_.colPivHouseholderQr().solve(sb);
+  }
+  return scale_.asDiagonal() * x;
+}
+
 void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y) {
   const int L = data.lines();
   a.resize(2 * L, phi.cols());
@@ -82,7 +102,7 @@ LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles)
   Eigen::VectorXd b;
   for (int e = 0; e < data.entries(); ++e) {
     stack_weighted(data, phi, e, a, b);
-    const Eigen::VectorXd c = a.householderQr().solve(b);
+    const Eigen::VectorXd c = GramSolver(a).solve(a.transpose() * b);
     out.cost += (a * c - b).squaredNorm();
     const auto r = residues_from_coefficients(poles, c);
     for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];

@@ -50,6 +50,25 @@ std::vector<cd> sigma_zeros(const std::vector<cd>& poles, const Eigen::VectorXd&
   return out;
 }
 
+// The block R22 of the QR factorisation of m = [A B] (A: the residue
+// columns, eliminated): any S with S^T S = B^T B - B^T A (A^T A)^-1 A^T B
+// serves, so it is the Cholesky factor of that Schur complement, from the
+// Gram matrix of m (one blocked product, several times faster than a
+// Householder QR of m); a Householder QR where the complement is not
+// numerically positive definite.
+Eigen::MatrixXd sigma_block(const Eigen::MatrixXd& m, int n1) {
+  const Eigen::MatrixXd g = m.transpose() * m;
+  Eigen::LLT<Eigen::MatrixXd> aa(g.topLeftCorner(n1, n1));
+  if (aa.info() == Eigen::Success) {
+    const Eigen::MatrixXd x = aa.matrixL().solve(g.topRightCorner(n1, n1));
+    const Eigen::MatrixXd schur = g.bottomRightCorner(n1, n1) - x.transpose() * x;
+    Eigen::LLT<Eigen::MatrixXd> s(schur);
+    if (s.info() == Eigen::Success) return s.matrixU();
+  }
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(m);
+  return qr.matrixQR().block(n1, n1, n1, n1).triangularView<Eigen::Upper>();
+}
+
 }  // namespace
 
 std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int iterations) {
@@ -81,10 +100,8 @@ std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int itera
           m(L + l, n1 + c) = b.imag();
         }
       }
-      Eigen::HouseholderQR<Eigen::MatrixXd> qr(m);
-      const Eigen::MatrixXd r = qr.matrixQR().topRows(2 * n1).triangularView<Eigen::Upper>();
       // Scale back so every entry's block weighs by its own data.
-      stacked.block(e * n1, 0, n1, n1) = r.block(n1, n1, n1, n1) * hnorm;
+      stacked.block(e * n1, 0, n1, n1) = sigma_block(m, n1) * hnorm;
     }
     // Relaxation: Re sum_l sigma(s_l) = L, weighted like the data.
     const double relax = std::sqrt(total / E);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numbers>
@@ -92,6 +93,36 @@ TEST(RationalFit, ModesSurviveADelayOfRadiansOverTheBand) {
   if (fit.report.delay_fitted) {
     EXPECT_NEAR(fit.report.delay_s, tau, 5 * fit.report.delay_sd_s);
   }
+}
+
+// explain_paper_table3: the bending-3 whirl pair (846 / 872 Hz) lies 4 %
+// below a radial housing mode at 906 Hz. The order search merges the pair
+// into one pole (a new pair with 17 entries costs more than the criterion
+// allows); that pole's residue matrix is rank two, so it is tried as two and
+// the split kept by its likelihood ratio. Each truth mode gets its own
+// identified mode within 0.5 % in frequency; damping within 10 % or, for the
+// weak forward mode next to the housing mode, within 3 of its reported
+// standard deviations (which exceed 10 % there: no estimator does better).
+TEST(RationalFit, SplitsACloseWhirlPairMergedNextToAHousingMode) {
+  const FrfData f = read_frf_csv(testing::data_file("explain_paper_table3/frf.csv").string());
+  const RationalFitResult fit = fit_rational(f);
+  const json truth = load_json(testing::data_file("explain_paper_table3/truth.json"));
+  std::vector<const IdentifiedMode*> used;
+  for (const auto& t : truth["truth_modes"]) {
+    const double f0 = t["f_hz"].get<double>(), z0 = t["zeta"].get<double>();
+    if (f0 < 800.0) continue;  // the close group at the top of the band
+    const IdentifiedMode* best = nullptr;
+    for (const auto& m : fit.modes)
+      if (!best || std::abs(m.f_hz - f0) < std::abs(best->f_hz - f0)) best = &m;
+    ASSERT_NE(best, nullptr);
+    EXPECT_NEAR(best->f_hz, f0, 0.005 * f0) << t["label"];
+    EXPECT_NEAR(best->zeta, z0, std::max(0.10 * z0, 3.0 * best->zeta_sd)) << t["label"];
+    if (std::abs(best->f_hz - 906.0) > 5.0) {  // the two housing modes at 906 Hz are one repeated root
+      EXPECT_EQ(std::count(used.begin(), used.end(), best), 0) << t["label"] << " merged";
+      used.push_back(best);
+    }
+  }
+  EXPECT_EQ(used.size(), 2u);
 }
 
 // No delay where there is none: the score test stays below its threshold.
