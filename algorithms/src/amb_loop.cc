@@ -205,7 +205,8 @@ AmbLoop::AmbLoop(const PlantModel& plant_in, const AmbLoopOptions& o) : impl_(st
     }
     if (k_t == 0.0) k_t = l.k_s_n_per_m;
     const double m_share = act.is_axial() ? plant.axial->m_kg.value_or(plant.rotor_mass_kg()) : rotor_share_kg;
-    if (d_t <= 0.0) d_t = 2.0 * 0.3 * std::sqrt(k_t * m_share);
+    if (d_t <= 0.0) d_t = 2.0 * 0.3 * std::sqrt(std::abs(k_t) * m_share);
+    if (!std::isfinite(k_t) || !std::isfinite(d_t)) throw InputError("actuator " + act.name + ": bearing stiffness and damping targets must be finite");
     rep.k_i_n_per_a.push_back(l.k_i_n_per_a);
     rep.k_s_n_per_m.push_back(l.k_s_n_per_m);
     rep.stiffness_n_per_m.push_back(k_t);
