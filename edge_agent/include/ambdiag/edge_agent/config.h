@@ -2,7 +2,7 @@
 //   {"pump_id": "P-101", "model": "plant.json", "source": "replay",
 //    "schedule": {"identification_interval_s": 3600, "monitoring_interval_s": 60, "runs": 0},
 //    "simulation": {"excitation": "multisine", "faults": ["dry_run"], "sample_rate_hz": 2048,
-//                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 800, "settle_periods": 2,
+//                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
 //                   "meas_periods": 4, "monitoring_s": 1, "seed": 1},
 //    "dds": {"domain": 0, "partition": "site-a"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
@@ -25,7 +25,7 @@ struct SimulationConfig {
   double sample_rate_hz = 2048.0;
   int64_t period_samples = 2048;
   double f_min_hz = 1.0;
-  double f_max_hz = 800.0;
+  double f_max_hz = 1000.0;
   int settle_periods = 2;
   int meas_periods = 4;
   double monitoring_s = 1.0;

@@ -45,7 +45,7 @@ struct SimulationOptions {
   double sample_rate_hz = 2048.0;        // recorded; the controller runs at a multiple >= 8 kHz
   int64_t period_samples = 2048;         // multisine: 1 Hz lines
   double f_min_hz = 1.0;
-  double f_max_hz = 800.0;
+  double f_max_hz = 1000.0;
   int settle_periods = 2;
   int meas_periods = 4;
   double force_rms_n = 20.0;             // multisine, per actuator
