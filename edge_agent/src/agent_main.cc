@@ -10,15 +10,20 @@
 #include <cerrno>
 #include <chrono>
 #include <exception>
+#include <cmath>
 #include <map>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/edge_agent/block_source.h"
 #include "ambdiag/edge_agent/config.h"
+#include "ambdiag/edge_agent/monitoring.h"
+#include "ambdiag/edge_agent/schedule.h"
 #include "ambdiag/edge_agent/simulate.h"
 #include "ambdiag/edge_agent/spool.h"
 #include "ambdiag/edge_agent/streamer.h"
@@ -52,7 +57,9 @@ const char* kUsage =
     "  --spool-limit BYTES  bound on the spool's disk use (default 1 GiB)\n"
     "  --block-frames N     frames per sample block (default 512)\n"
     "  --timeout S          give up after S seconds without progress (default 60)\n"
-    "  --runs N             simulate: number of identification runs (default 1)\n"
+    "  --runs N             simulate: identification runs, then exit (default: the config's\n"
+    "                       schedule.runs; 0 = until stopped)\n"
+    "  --fault NAME[=VALUE] simulate: inject faults (see edge_agent/README.md)\n"
     "  --seed N             simulate: noise seed (default 1)\n"
     "exit codes: 0 committed, 1 not committed (timeout, incomplete, stopped), 2 usage, 3 bad input\n";
 
@@ -118,6 +125,12 @@ agent::AgentConfig config_from(const Cli& c) {
   return cfg;
 }
 
+std::string join(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
 // Streams one run; returns true if the server verified it complete.
 bool stream_one(stream::AgentEndpoints& ep, RunRecording run, const agent::AgentConfig& cfg,
                 const agent::StreamOptions& opt) {
@@ -152,31 +165,58 @@ int run(const Cli& c) {
     stream::AgentEndpoints ep(cfg.domain, cfg.partition);
     return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
   }
-  // simulate: identification runs on the schedule (the config's
-  // identification_interval_s between runs).
+  // simulate: identification runs every identification_interval_s, the
+  // first at start, until `runs` are done (0: until stopped); monitoring
+  // snapshots every monitoring_interval_s from their own thread.
   if (!c.positional.empty()) throw UsageError("simulate takes no positional arguments");
   if (cfg.model.empty()) throw UsageError("simulate needs --model PLANT.json (or \"model\" in the config)");
   if (cfg.pump_id.empty()) throw UsageError("simulate needs --pump ID (or \"pump_id\" in the config)");
   agent::SimulationOptions sim;
   sim.pump_id = cfg.pump_id;
-  sim.faults = c.opts.count("--fault") ? c.opts.at("--fault") : std::vector<std::string>{};
-  if (c.has("--seed")) sim.seed = static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40));
-  const long long runs = c.has("--runs") ? integer_option(c, "--runs", 1, 1000000) : 1;
-  agent::PumpSimulator simulator(cfg.model, sim);
+  const agent::SimulationConfig& sc = cfg.simulation;
+  sim.faults = c.opts.count("--fault") ? c.opts.at("--fault") : sc.faults;
+  sim.excitation = sc.excitation;
+  sim.sample_rate_hz = sc.sample_rate_hz;
+  sim.period_samples = sc.period_samples;
+  sim.f_min_hz = sc.f_min_hz;
+  sim.f_max_hz = sc.f_max_hz;
+  sim.settle_periods = sc.settle_periods;
+  sim.meas_periods = sc.meas_periods;
+  sim.monitoring_s = sc.monitoring_s;
+  sim.seed = c.has("--seed") ? static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40)) : sc.seed;
+  const long long runs = c.has("--runs") ? integer_option(c, "--runs", 0, 1000000) : cfg.runs;
+  const PlantModel plant = read_plant_file(cfg.model);
+  agent::PumpSimulator simulator(plant, sim);
+  const AmbLoopReport& loop = simulator.loop().report();
+  std::fprintf(stderr,
+               "ambdiag-agent: simulating pump %s from %s: %s, faults [%s]; AMB loop at %g Hz, k_i %g N/A, k_s %g N/m "
+               "(first actuator), spectral radius %.6f\n",
+               cfg.pump_id.c_str(), cfg.model.c_str(), sim.excitation.c_str(), join(sim.faults).c_str(),
+               simulator.loop().controller_rate_hz(), loop.k_i_n_per_a.at(0), loop.k_s_n_per_m.at(0), loop.spectral_radius);
   stream::AgentEndpoints ep(cfg.domain, cfg.partition);
-  bool all_ok = true;
-  for (long long i = 0; i < runs && !g_stop; ++i) {
-    if (i > 0) {
-      const auto until =
-          std::chrono::steady_clock::now() + std::chrono::duration<double>(cfg.identification_interval_s);
-      while (!g_stop && std::chrono::steady_clock::now() < until)
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      if (g_stop) break;
-    }
-    std::fprintf(stderr, "ambdiag-agent: simulating identification run %lld of %lld\n", i + 1, runs);
-    all_ok = stream_one(ep, simulator.identification_run(), cfg, opt) && all_ok;
+  std::unique_ptr<agent::SnapshotPublisher> snapshots;
+  if (cfg.monitoring_interval_s > 0) {
+    agent::SimulationOptions mon = sim;
+    mon.seed = sim.seed + 1;  // its own noise
+    snapshots = std::make_unique<agent::SnapshotPublisher>(ep, cfg.pump_id, std::make_unique<agent::PumpSimulator>(plant, mon),
+                                                           cfg.monitoring_interval_s);
   }
-  return all_ok ? 0 : 1;
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  auto seconds = [&] { return std::chrono::duration<double>(clock::now() - t0).count(); };
+  agent::Ticker ident(cfg.identification_interval_s, 0.0);
+  bool all_ok = true;
+  for (long long i = 0; (runs == 0 || i < runs) && !g_stop; ++i) {
+    while (!g_stop && !ident.due(seconds())) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (g_stop) break;
+    std::fprintf(stderr, "ambdiag-agent: simulating identification run %lld%s\n", i + 1,
+                 runs ? (" of " + std::to_string(runs)).c_str() : "");
+    all_ok = stream_one(ep, simulator.identification_run(), cfg, opt) && all_ok;
+    ident.done(seconds());
+  }
+  if (snapshots)
+    std::fprintf(stderr, "ambdiag-agent: %ld monitoring snapshots published\n", snapshots->published());
+  return all_ok && !g_stop ? 0 : 1;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "ambdiag/edge_agent/config.h"
 
 #include <cmath>
+#include <optional>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -46,7 +47,17 @@ void validate(const AgentConfig& c, const std::string& origin) {
   if (c.partition.empty() || c.partition.find_first_of("*?[]") != std::string::npos)
     fail("dds.partition", "must be a plain name (no wildcards)");
   if (!(c.identification_interval_s > 0)) fail("schedule.identification_interval_s", "must be > 0");
-  if (!(c.monitoring_interval_s > 0)) fail("schedule.monitoring_interval_s", "must be > 0");
+  if (!(c.monitoring_interval_s >= 0)) fail("schedule.monitoring_interval_s", "must be >= 0 (0: no snapshots)");
+  if (c.runs < 0) fail("schedule.runs", "must be >= 0 (0: no limit)");
+  const SimulationConfig& s = c.simulation;
+  if (s.excitation != "multisine" && s.excitation != "stepsine") fail("simulation.excitation", "must be \"multisine\" or \"stepsine\"");
+  if (!(s.sample_rate_hz >= 64 && s.sample_rate_hz <= 1e6)) fail("simulation.sample_rate_hz", "must be in 64..1e6");
+  if (s.period_samples < 64 || s.period_samples > (1 << 22)) fail("simulation.period_samples", "must be in 64..4194304");
+  if (!(s.f_min_hz > 0)) fail("simulation.f_min_hz", "must be > 0");
+  if (!(s.f_max_hz > s.f_min_hz && s.f_max_hz < s.sample_rate_hz / 2)) fail("simulation.f_max_hz", "must be in (f_min_hz, sample_rate_hz / 2)");
+  if (s.settle_periods < 0 || s.settle_periods > 1000) fail("simulation.settle_periods", "must be in 0..1000");
+  if (s.meas_periods < 1 || s.meas_periods > 1000) fail("simulation.meas_periods", "must be in 1..1000");
+  if (!(s.monitoring_s > 0 && s.monitoring_s <= 3600)) fail("simulation.monitoring_s", "must be in (0, 3600]");
   if (c.spool_dir.empty()) fail("spool.dir", "must be a folder");
   if (c.spool_limit_bytes < (1u << 20)) fail("spool.limit_bytes", "must be at least 1 MiB (1048576)");
   if (c.memory_blocks < 1 || c.memory_blocks > 65536) fail("spool.memory_blocks", "must be in 1..65536");
@@ -62,18 +73,48 @@ AgentConfig load_agent_config(const std::string& path) {
     throw InputError(path + ": not valid JSON: " + e.what());
   }
   const Reader r{path};
-  r.only(doc, "", {"pump_id", "model", "source", "schedule", "dds", "spool", "block_frames"});
+  r.only(doc, "", {"pump_id", "model", "source", "schedule", "simulation", "dds", "spool", "block_frames"});
   AgentConfig c;
   if (doc.contains("pump_id")) c.pump_id = r.str(doc["pump_id"], "pump_id");
   if (doc.contains("model")) c.model = r.str(doc["model"], "model");
   if (doc.contains("source")) c.source = r.str(doc["source"], "source");
   if (doc.contains("schedule")) {
     const json& s = doc["schedule"];
-    r.only(s, "schedule", {"identification_interval_s", "monitoring_interval_s"});
+    r.only(s, "schedule", {"identification_interval_s", "monitoring_interval_s", "runs"});
+    if (s.contains("runs")) c.runs = r.integer(s["runs"], "schedule.runs");
     if (s.contains("identification_interval_s"))
       c.identification_interval_s = r.number(s["identification_interval_s"], "schedule.identification_interval_s");
     if (s.contains("monitoring_interval_s"))
       c.monitoring_interval_s = r.number(s["monitoring_interval_s"], "schedule.monitoring_interval_s");
+  }
+  if (doc.contains("simulation")) {
+    const json& s = doc["simulation"];
+    SimulationConfig& m = c.simulation;
+    r.only(s, "simulation", {"excitation", "faults", "sample_rate_hz", "period_samples", "f_min_hz", "f_max_hz",
+                             "settle_periods", "meas_periods", "monitoring_s", "seed"});
+    if (s.contains("excitation")) m.excitation = r.str(s["excitation"], "simulation.excitation");
+    if (s.contains("faults")) {
+      if (!s["faults"].is_array()) r.fail("simulation.faults", "must be a list of fault names");
+      for (size_t i = 0; i < s["faults"].size(); ++i)
+        m.faults.push_back(r.str(s["faults"][i], "simulation.faults[" + std::to_string(i) + "]"));
+    }
+    auto num = [&](const char* k, double& out) {
+      if (s.contains(k)) out = r.number(s[k], std::string("simulation.") + k);
+    };
+    auto whole = [&](const char* k, int64_t lo, int64_t hi) -> std::optional<int64_t> {
+      if (!s.contains(k)) return std::nullopt;
+      const int64_t v = r.integer(s[k], std::string("simulation.") + k);
+      if (v < lo || v > hi) r.fail(std::string("simulation.") + k, "must be in " + std::to_string(lo) + ".." + std::to_string(hi));
+      return v;
+    };
+    num("sample_rate_hz", m.sample_rate_hz);
+    num("f_min_hz", m.f_min_hz);
+    num("f_max_hz", m.f_max_hz);
+    num("monitoring_s", m.monitoring_s);
+    if (auto v = whole("period_samples", 64, 1 << 22)) m.period_samples = *v;
+    if (auto v = whole("settle_periods", 0, 1000)) m.settle_periods = static_cast<int>(*v);
+    if (auto v = whole("meas_periods", 1, 1000)) m.meas_periods = static_cast<int>(*v);
+    if (auto v = whole("seed", 0, int64_t{1} << 40)) m.seed = static_cast<uint64_t>(*v);
   }
   if (doc.contains("dds")) {
     const json& d = doc["dds"];

@@ -1,20 +1,22 @@
 #include "ambdiag/edge_agent/simulate.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <complex>
 #include <ctime>
+#include <map>
 #include <numbers>
+#include <optional>
 #include <random>
-#include <set>
 
-#include "ambdiag/algorithms/frf_synthesis.h"
+#include "ambdiag/algorithms/fault_models.h"
 #include "ambdiag/core/error.h"
 
 namespace ambdiag::agent {
 namespace {
 
-using cd = std::complex<double>;
+constexpr double kPi = std::numbers::pi;
 
 std::string utc_now_iso() {
   const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
@@ -25,122 +27,295 @@ std::string utc_now_iso() {
   return buf;
 }
 
-}  // namespace
-
-PumpSimulator::PumpSimulator(const std::string& model_path, SimulationOptions opt)
-    : plant_(read_plant_file(model_path)), opt_(std::move(opt)) {
-  static const std::set<std::string> kSupported = {"sensor_fault", "actuator_fault", "unbalance"};
-  for (const auto& f : opt_.faults)
-    if (!kSupported.count(f))
-      throw InputError("--fault " + f + ": the simulator injects only sensor_fault, actuator_fault and unbalance so far");
-  if (plant_.sensors.empty() || plant_.actuators.empty())
-    throw InputError(model_path + ": the simulator needs sensors and actuators in the plant model");
+// Unbalance of balance grade G 2.5 (ISO 21940), the healthy residual:
+// e Omega = 2.5 mm/s, u = m e.
+double residual_unbalance_kg_m(const PlantModel& p) {
+  const double omega = p.speed_rpm * 2 * kPi / 60.0;
+  return omega > 0 ? p.rotor_mass_kg() * 2.5e-3 / omega : 0.0;
 }
 
-RunRecording PumpSimulator::identification_run() {
-  const size_t n_in = plant_.actuators.size(), n_out = plant_.sensors.size();
-  const int64_t N = opt_.period_samples;
-  const double fs = opt_.sample_rate_hz, df = fs / static_cast<double>(N);
-  std::vector<int64_t> bins;
-  std::vector<double> freqs;
-  for (int64_t k = static_cast<int64_t>(std::ceil(opt_.f_min_hz / df)); k * df <= opt_.f_max_hz; ++k) {
-    bins.push_back(k);
-    freqs.push_back(static_cast<double>(k) * df);
+int impeller_node(const PlantModel& p) {
+  for (const auto& d : p.disks)
+    if (d.name == "impeller") return d.node;
+  return p.node_count() / 2;
+}
+
+struct FaultSpec {
+  std::string name;
+  std::optional<double> value;
+};
+
+FaultSpec parse_fault(const std::string& text) {
+  FaultSpec f;
+  const auto eq = text.find('=');
+  f.name = text.substr(0, eq);
+  if (eq != std::string::npos) {
+    const std::string v = text.substr(eq + 1);
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0)
+      throw InputError("--fault " + text + ": the value must be a number >= 0");
+    f.value = x;
   }
-  const FrfData H = synthesize_frf(plant_, plant_.speed_rpm, freqs);
+  return f;
+}
 
-  std::mt19937_64 rng(opt_.seed + static_cast<uint64_t>(runs_));
-  std::uniform_real_distribution<double> uni(0.0, 2 * std::numbers::pi);
-  std::vector<double> phase(bins.size());
-  for (auto& p : phase) p = uni(rng);
-  const double amp = opt_.force_rms_n * std::sqrt(2.0 / static_cast<double>(bins.size()));
+// The plant-fault hypothesis of that name: seals by kind, a crack in the
+// element left of the impeller, the impeller's hub joint.
+const FaultHypothesis* plant_hypothesis(const std::vector<FaultHypothesis>& hs, FaultKind kind, int crack_element) {
+  for (const auto& h : hs) {
+    if (h.kind != kind) continue;
+    if (kind == FaultKind::rotor_crack && (h.elements.empty() || h.elements.front() != crack_element)) continue;
+    return &h;
+  }
+  return nullptr;
+}
 
+// Amplitude and phase of the component at w (rad/s) of samples v at fs, by
+// least squares on cos/sin (the window need not hold whole periods).
+std::pair<double, double> harmonic(const Eigen::RowVectorXd& v, double w, double fs) {
+  double cc = 0, ss = 0, cs = 0, vc = 0, vs = 0;
+  for (Eigen::Index k = 0; k < v.size(); ++k) {
+    const double t = static_cast<double>(k) / fs, c = std::cos(w * t), s = std::sin(w * t);
+    cc += c * c, ss += s * s, cs += c * s, vc += v(k) * c, vs += v(k) * s;
+  }
+  const double det = cc * ss - cs * cs;
+  if (!(det > 0)) return {0.0, 0.0};
+  const double a = (vc * ss - vs * cs) / det, b = (vs * cc - vc * cs) / det;  // v ~ a cos + b sin
+  return {std::hypot(a, b), std::atan2(-b, a)};                                 // amp cos(w t + phase)
+}
+
+}  // namespace
+
+PumpSimulator::~PumpSimulator() = default;
+
+PumpSimulator::PumpSimulator(const std::string& model_path, SimulationOptions opt)
+    : PumpSimulator(read_plant_file(model_path), std::move(opt)) {}
+
+PumpSimulator::PumpSimulator(PlantModel plant, SimulationOptions opt) : plant_(std::move(plant)), opt_(std::move(opt)) {
+  if (plant_.sensors.empty() || plant_.actuators.empty())
+    throw InputError("the simulator needs sensors and actuators in the plant model");
+  if (opt_.excitation != "multisine" && opt_.excitation != "stepsine")
+    throw InputError("excitation must be multisine or stepsine, got '" + opt_.excitation + "'");
+  if (!(opt_.sample_rate_hz > 0) || opt_.period_samples < 8 || opt_.settle_periods < 0 || opt_.meas_periods < 1 ||
+      !(opt_.f_min_hz > 0) || !(opt_.f_max_hz > opt_.f_min_hz) || opt_.f_max_hz >= opt_.sample_rate_hz / 2 ||
+      opt_.stepsine_steps < 1 || !(opt_.monitoring_s > 0))
+    throw InputError("simulation options: need sample rate > 0, 0 < f_min < f_max < Nyquist, periods >= 1");
+  AmbLoopOptions& lo = opt_.loop;
+  lo.decimation = static_cast<int>(std::ceil(8000.0 / opt_.sample_rate_hz - 1e-9));
+  lo.decimation = std::max(lo.decimation, 1);
+  lo.controller_rate_hz = opt_.sample_rate_hz * lo.decimation;
+  lo.seed = opt_.seed;
+  lo.unbalance_node = impeller_node(plant_);
+  lo.unbalance_kg_m = residual_unbalance_kg_m(plant_) * opt_.unbalance_grade_mm_per_s / 2.5;
+
+  const std::vector<FaultHypothesis> hyps = fault_hypotheses(plant_);
+  const int crack_element = std::max(0, impeller_node(plant_) - 1);
+  static const std::map<std::string, std::pair<FaultKind, double>> kPlantFaults = {
+      {"dry_run", {FaultKind::dry_run, 0.0}},
+      {"balance_piston_wear", {FaultKind::balance_piston_wear, 2.0}},
+      {"impeller_seal_wear", {FaultKind::impeller_seal_wear, 2.0}},
+      {"rotor_crack", {FaultKind::rotor_crack, 0.5}},
+      {"shaft_nut_loosening", {FaultKind::shaft_nut_loosening, 0.5}}};
+  for (const auto& text : opt_.faults) {
+    const FaultSpec f = parse_fault(text);
+    if (f.name == "sensor_fault") {
+      lo.sensor_gain.assign(plant_.sensors.size(), 1.0);
+      lo.sensor_gain[0] = f.value.value_or(0.8);
+    } else if (f.name == "actuator_fault") {
+      lo.actuator_gain.assign(plant_.actuators.size(), 1.0);
+      lo.actuator_gain[0] = f.value.value_or(0.7);
+    } else if (f.name == "unbalance") {
+      lo.unbalance_kg_m = f.value.value_or(10.0 * residual_unbalance_kg_m(plant_));
+    } else if (auto it = kPlantFaults.find(f.name); it != kPlantFaults.end()) {
+      const FaultHypothesis* h = plant_hypothesis(hyps, it->second.first, crack_element);
+      if (!h) throw InputError("--fault " + f.name + ": the plant model has nothing this fault acts on");
+      const double v = f.value.value_or(it->second.second);
+      if (v < h->lower || v > h->upper)
+        throw InputError("--fault " + text + ": " + h->parameter + " must be in [" + std::to_string(h->lower) + ", " +
+                         std::to_string(h->upper) + "]");
+      plant_ = apply_fault(plant_, *h, v);
+    } else {
+      throw InputError("--fault " + f.name +
+                       ": unknown fault (sensor_fault, actuator_fault, unbalance, dry_run, balance_piston_wear, "
+                       "impeller_seal_wear, rotor_crack, shaft_nut_loosening)");
+    }
+  }
+  loop_ = std::make_unique<AmbLoop>(plant_, lo);
+}
+
+RunRecording PumpSimulator::new_run(const std::string& kind) {
   RunRecording run;
   run.pump_id = opt_.pump_id;
   run.run_id = opt_.pump_id + "/sim-" + std::to_string(++runs_) + "-" + utc_now_iso();
-  run.kind = "identification";
+  run.kind = kind;
   run.started_at = utc_now_iso();
   run.speed_rpm = plant_.speed_rpm;
-  run.sample_rate_hz = fs;
+  run.sample_rate_hz = opt_.sample_rate_hz;
   for (const auto& a : plant_.actuators)
     run.channels.push_back({"r" + a.name, ChannelRole::reference, "reference", "N", a.name, nlohmann::json::object()});
   for (const auto& a : plant_.actuators)
     run.channels.push_back({a.name, ChannelRole::force, "force", "N", "", nlohmann::json::object()});
   for (const auto& s : plant_.sensors)
     run.channels.push_back({s.name, ChannelRole::displacement, "displacement", "m", "", nlohmann::json::object()});
+  run.channels.push_back({"speed", ChannelRole::speed, "speed", "rpm", "", nlohmann::json::object()});
+  return run;
+}
+
+void PumpSimulator::append(RunRecording& run, const Eigen::MatrixXd& r, const Eigen::MatrixXd& f,
+                           const Eigen::MatrixXd& x) const {
+  const size_t n_ch = run.channels.size();
+  const size_t old = run.samples.size();
+  run.samples.resize(old + static_cast<size_t>(r.cols()) * n_ch);
+  float* row = run.samples.data() + old;
+  for (Eigen::Index k = 0; k < r.cols(); ++k, row += n_ch) {
+    size_t c = 0;
+    for (Eigen::Index j = 0; j < r.rows(); ++j) row[c++] = static_cast<float>(r(j, k));
+    for (Eigen::Index j = 0; j < f.rows(); ++j) row[c++] = static_cast<float>(f(j, k));
+    for (Eigen::Index i = 0; i < x.rows(); ++i) row[c++] = static_cast<float>(x(i, k));
+    row[c] = static_cast<float>(plant_.speed_rpm);
+  }
+}
+
+RunRecording PumpSimulator::identification_run() {
+  RunRecording run = opt_.excitation == "multisine" ? multisine_run() : stepsine_run();
+  run.validate();
+  return run;
+}
+
+RunRecording PumpSimulator::multisine_run() {
+  RunRecording run = new_run("identification");
+  const size_t n_in = plant_.actuators.size();
+  const int dec = opt_.loop.decimation;
+  const int64_t N = opt_.period_samples, Nc = N * dec;
+  const double df = opt_.sample_rate_hz / static_cast<double>(N);
+  std::vector<int64_t> bins;
+  for (auto k = static_cast<int64_t>(std::ceil(opt_.f_min_hz / df - 1e-9)); static_cast<double>(k) * df <= opt_.f_max_hz + 1e-9; ++k)
+    bins.push_back(k);
+  if (bins.empty()) throw InputError("multisine: no line between f_min and f_max");
+  // One period of z(n) = sum_k A e^{j phi_k} e^{j 2 pi k n / N} at the
+  // controller rate; input j of pattern p is Re(e^{j 2 pi p j / n_in} z).
+  std::mt19937_64 rng(opt_.seed * 7919 + static_cast<uint64_t>(runs_));
+  std::uniform_real_distribution<double> uni(0.0, 2 * kPi);
+  const double amp = opt_.force_rms_n * std::sqrt(2.0 / static_cast<double>(bins.size()));
+  std::vector<std::complex<double>> z(static_cast<size_t>(Nc), 0.0);
+  for (const int64_t b : bins) {
+    const std::complex<double> step = std::polar(1.0, 2 * kPi * static_cast<double>(b) / static_cast<double>(Nc));
+    std::complex<double> w = std::polar(amp, uni(rng));
+    for (auto& v : z) v += w, w *= step;
+  }
   Excitation ex;
   ex.type = ExcitationType::multisine;
   ex.period_samples = N;
-  ex.f_min_hz = freqs.front();
-  ex.f_max_hz = freqs.back();
+  ex.f_min_hz = static_cast<double>(bins.front()) * df;
+  ex.f_max_hz = static_cast<double>(bins.back()) * df;
   const int periods = opt_.settle_periods + opt_.meas_periods;
-  const size_t n_ch = run.channels.size();
-  const int64_t frames = static_cast<int64_t>(n_in) * periods * N;
-  run.samples.assign(static_cast<size_t>(frames) * n_ch, 0.0f);
-
-  // One period per segment (the run is steady state: every period the same).
-  std::vector<double> r(n_in * static_cast<size_t>(N)), x(n_out * static_cast<size_t>(N));
+  Eigen::MatrixXd r, f, x;
   for (size_t p = 0; p < n_in; ++p) {
     ExcitationSegment seg;
-    seg.start = static_cast<int64_t>(p) * periods * N;
+    seg.start = run.frame_count();
     seg.periods = periods;
     seg.settle_periods = opt_.settle_periods;
     seg.pattern = static_cast<int>(p);
     ex.segments.push_back(seg);
-    std::fill(r.begin(), r.end(), 0.0);
-    std::fill(x.begin(), x.end(), 0.0);
-    for (size_t k = 0; k < bins.size(); ++k) {
-      std::vector<cd> F(n_in);
-      for (size_t j = 0; j < n_in; ++j)
-        F[j] = std::polar(amp, phase[k] + 2 * std::numbers::pi * static_cast<double>(p * j) / static_cast<double>(n_in));
-      std::vector<cd> X(n_out);
-      for (size_t i = 0; i < n_out; ++i)
-        for (size_t j = 0; j < n_in; ++j)
-          if (const FrfEntry* e = H.find(plant_.sensors[i].name, plant_.actuators[j].name)) X[i] += e->h[k] * F[j];
-      const cd step = std::polar(1.0, 2 * std::numbers::pi * static_cast<double>(bins[k]) / static_cast<double>(N));
-      cd w = 1.0;
-      for (int64_t n = 0; n < N; ++n, w *= step) {
-        for (size_t j = 0; j < n_in; ++j) r[j * static_cast<size_t>(N) + static_cast<size_t>(n)] += (F[j] * w).real();
-        for (size_t i = 0; i < n_out; ++i) x[i * static_cast<size_t>(N) + static_cast<size_t>(n)] += (X[i] * w).real();
-      }
-    }
-    // Faults on the measurement chain, then noise.
-    std::vector<double> gain_f(n_in, 1.0), gain_x(n_out, 1.0), offset_x(n_out, 0.0);
-    for (const auto& f : opt_.faults) {
-      if (f == "sensor_fault") gain_x[0] = 0.8, offset_x[0] = 20e-6;
-      if (f == "actuator_fault") gain_f[0] = 0.7;
-    }
-    auto rms = [&](const std::vector<double>& v, size_t c) {
-      double s = 0;
-      for (int64_t n = 0; n < N; ++n) s += v[c * static_cast<size_t>(N) + static_cast<size_t>(n)] * v[c * static_cast<size_t>(N) + static_cast<size_t>(n)];
-      return std::sqrt(s / static_cast<double>(N));
-    };
-    std::vector<double> sf(n_in), sx(n_out);
-    for (size_t j = 0; j < n_in; ++j) sf[j] = opt_.noise_fraction * rms(r, j);
-    for (size_t i = 0; i < n_out; ++i) sx[i] = opt_.noise_fraction * rms(x, i);
-    std::normal_distribution<double> gauss(0.0, 1.0);
-    const double omega_1x = plant_.speed_rpm / 60.0 * 2 * std::numbers::pi;
-    const bool unbalance = std::find(opt_.faults.begin(), opt_.faults.end(), "unbalance") != opt_.faults.end();
-    for (int64_t n = 0; n < periods * N; ++n) {
-      const int64_t frame = seg.start + n;
-      const size_t n0 = static_cast<size_t>(n % N);
-      float* row = run.samples.data() + static_cast<size_t>(frame) * n_ch;
-      const double t = static_cast<double>(frame) / fs;
-      for (size_t j = 0; j < n_in; ++j) {
-        row[j] = static_cast<float>(r[j * static_cast<size_t>(N) + n0]);
-        row[n_in + j] = static_cast<float>(gain_f[j] * r[j * static_cast<size_t>(N) + n0] + sf[j] * gauss(rng));
-      }
-      for (size_t i = 0; i < n_out; ++i) {
-        double v = gain_x[i] * x[i * static_cast<size_t>(N) + n0] + offset_x[i] + sx[i] * gauss(rng);
-        if (unbalance && !plant_.sensors[i].is_axial())
-          v += 10e-6 * (plant_.sensors[i].dir == 'x' ? std::cos(omega_1x * t) : std::sin(omega_1x * t));
-        row[2 * n_in + i] = static_cast<float>(v);
-      }
-    }
+    std::vector<std::complex<double>> rot(n_in);
+    for (size_t j = 0; j < n_in; ++j) rot[j] = std::polar(1.0, 2 * kPi * static_cast<double>(p * j) / static_cast<double>(n_in));
+    loop_->run(periods * N, [&](int64_t k, std::span<double> out) {
+      const std::complex<double> v = z[static_cast<size_t>(k % Nc)];
+      for (size_t j = 0; j < n_in; ++j) out[j] = (rot[j] * v).real();
+    }, r, f, x);
+    append(run, r, f, x);
   }
   run.excitation = ex;
-  run.validate();
   return run;
+}
+
+RunRecording PumpSimulator::stepsine_run() {
+  RunRecording run = new_run("identification");
+  const size_t n_in = plant_.actuators.size();
+  const double fs = opt_.sample_rate_hz, fc = fs * opt_.loop.decimation;
+  const auto settle = static_cast<int64_t>(std::ceil(opt_.stepsine_settle_s * fs));
+  Excitation ex;
+  ex.type = ExcitationType::stepsine;
+  Eigen::MatrixXd r, f, x;
+  for (size_t j = 0; j < n_in; ++j) {
+    for (int s = 0; s < opt_.stepsine_steps; ++s) {
+      const double frac = opt_.stepsine_steps > 1 ? static_cast<double>(s) / (opt_.stepsine_steps - 1) : 0.0;
+      const double f_want = opt_.f_min_hz * std::pow(opt_.f_max_hz / opt_.f_min_hz, frac);
+      // Whole periods in the measured part: P periods in M samples, f = P fs / M.
+      const auto periods = std::max<int64_t>(1, std::llround(std::ceil(f_want * opt_.stepsine_meas_s)));
+      const auto meas = std::max<int64_t>(4, std::llround(static_cast<double>(periods) * fs / f_want));
+      ExcitationSegment seg;
+      seg.start = run.frame_count();
+      seg.input = plant_.actuators[j].name;
+      seg.freq_hz = static_cast<double>(periods) * fs / static_cast<double>(meas);
+      seg.amplitude = opt_.stepsine_amplitude_n;
+      seg.settle_samples = settle;
+      seg.meas_samples = meas;
+      seg.periods = periods;
+      seg.length = settle + meas;
+      ex.segments.push_back(seg);
+      const double w = 2 * kPi * seg.freq_hz / fc;
+      loop_->run(seg.length, [&](int64_t k, std::span<double> out) {
+        std::fill(out.begin(), out.end(), 0.0);
+        out[j] = seg.amplitude * std::sin(w * static_cast<double>(k));
+      }, r, f, x);
+      append(run, r, f, x);
+    }
+  }
+  ex.f_min_hz = ex.segments.front().freq_hz;
+  ex.f_max_hz = ex.segments.back().freq_hz;
+  for (const auto& s : ex.segments) ex.f_min_hz = std::min(ex.f_min_hz, s.freq_hz), ex.f_max_hz = std::max(ex.f_max_hz, s.freq_hz);
+  run.excitation = ex;
+  return run;
+}
+
+Snapshot PumpSimulator::monitoring_snapshot() {
+  const auto n = static_cast<int64_t>(std::ceil(opt_.monitoring_s * opt_.sample_rate_hz));
+  Eigen::MatrixXd r, f, x;
+  loop_->run(n, [](int64_t, std::span<double> out) { std::fill(out.begin(), out.end(), 0.0); }, r, f, x);
+  Snapshot s;
+  s.speed_rpm = plant_.speed_rpm;
+  const double w = plant_.speed_rpm * 2 * kPi / 60.0, fs = opt_.sample_rate_hz;
+  auto slot = [](const MeasurementPoint& p) {
+    if (p.is_axial() || (p.plane != "A" && p.plane != "B")) return -1;
+    return (p.plane == "B" ? 2 : 0) + (p.dir == 'y' ? 1 : 0);
+  };
+  for (size_t j = 0; j < plant_.actuators.size(); ++j) {
+    const int k = slot(plant_.actuators[j]);
+    if (k < 0 || w <= 0) continue;
+    const auto h1 = harmonic(f.row(static_cast<Eigen::Index>(j)), w, fs), h2 = harmonic(f.row(static_cast<Eigen::Index>(j)), 2 * w, fs);
+    s.force_1x_amp_n[static_cast<size_t>(k)] = h1.first;
+    s.force_1x_phase_rad[static_cast<size_t>(k)] = h1.second;
+    s.force_2x_amp_n[static_cast<size_t>(k)] = h2.first;
+    s.force_2x_phase_rad[static_cast<size_t>(k)] = h2.second;
+  }
+  // Orbit of each bearing from its x and y sensors: centre = mean, semi-axes
+  // from the covariance (sqrt(2 lambda): exact for an elliptic 1x orbit).
+  double sum_sq = 0;
+  int lateral = 0;
+  for (int b = 0; b < 2; ++b) {
+    Eigen::Index ix = -1, iy = -1;
+    for (size_t i = 0; i < plant_.sensors.size(); ++i) {
+      const int k = slot(plant_.sensors[i]);
+      if (k == 2 * b) ix = static_cast<Eigen::Index>(i);
+      if (k == 2 * b + 1) iy = static_cast<Eigen::Index>(i);
+    }
+    if (ix < 0 || iy < 0) continue;
+    const double mx = x.row(ix).mean(), my = x.row(iy).mean();
+    const Eigen::RowVectorXd dx = x.row(ix).array() - mx, dy = x.row(iy).array() - my;
+    const double nn = static_cast<double>(n);
+    const double sxx = dx.squaredNorm() / nn, syy = dy.squaredNorm() / nn, sxy = dx.dot(dy) / nn;
+    const double tr = sxx + syy, disc = std::sqrt(std::max(0.0, (sxx - syy) * (sxx - syy) / 4 + sxy * sxy));
+    s.orbit_major_m[static_cast<size_t>(b)] = std::sqrt(2 * (tr / 2 + disc));
+    s.orbit_minor_m[static_cast<size_t>(b)] = std::sqrt(2 * std::max(0.0, tr / 2 - disc));
+    s.orbit_center_x_m[static_cast<size_t>(b)] = mx;
+    s.orbit_center_y_m[static_cast<size_t>(b)] = my;
+  }
+  for (size_t i = 0; i < plant_.sensors.size(); ++i)
+    if (!plant_.sensors[i].is_axial()) sum_sq += x.row(static_cast<Eigen::Index>(i)).squaredNorm() / static_cast<double>(n), ++lateral;
+  s.displacement_rms_m = lateral > 0 ? std::sqrt(sum_sq / lateral) : 0.0;
+  return s;
 }
 
 }  // namespace ambdiag::agent

@@ -35,6 +35,37 @@ TEST(AgentConfig, ReadsEveryKey) {
   EXPECT_EQ(c.block_frames, 256u);
 }
 
+TEST(AgentConfig, ReadsScheduleAndSimulation) {
+  const auto path = ambdiag::testing::write_scratch(
+      "agent.json",
+      R"({"schedule": {"identification_interval_s": 30, "monitoring_interval_s": 0, "runs": 3},
+          "simulation": {"excitation": "stepsine", "faults": ["dry_run", "sensor_fault=0.5"],
+                         "sample_rate_hz": 8192, "period_samples": 4096, "f_min_hz": 5, "f_max_hz": 1000,
+                         "settle_periods": 1, "meas_periods": 8, "monitoring_s": 2, "seed": 7}})");
+  const AgentConfig c = load_agent_config(path.string());
+  EXPECT_EQ(c.runs, 3);
+  EXPECT_EQ(c.monitoring_interval_s, 0.0);  // no snapshots
+  EXPECT_EQ(c.simulation.excitation, "stepsine");
+  ASSERT_EQ(c.simulation.faults.size(), 2u);
+  EXPECT_EQ(c.simulation.faults[1], "sensor_fault=0.5");
+  EXPECT_EQ(c.simulation.sample_rate_hz, 8192);
+  EXPECT_EQ(c.simulation.period_samples, 4096);
+  EXPECT_EQ(c.simulation.f_max_hz, 1000);
+  EXPECT_EQ(c.simulation.meas_periods, 8);
+  EXPECT_EQ(c.simulation.monitoring_s, 2);
+  EXPECT_EQ(c.simulation.seed, 7u);
+}
+
+TEST(AgentConfig, SimulationErrorsNameTheKey) {
+  EXPECT_NE(error_of(R"({"schedule": {"runs": -1}})").find("schedule.runs"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"excitation": "chirp"}})").find("simulation.excitation"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"faults": "dry_run"}})").find("simulation.faults"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"faults": [3]}})").find("simulation.faults[0]"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"f_max_hz": 2000}})").find("simulation.f_max_hz"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"meas_periods": 0}})").find("simulation.meas_periods"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"sede": 1}})").find("simulation.sede: unknown key"), std::string::npos);
+}
+
 TEST(AgentConfig, ErrorsNameTheKey) {
   EXPECT_NE(error_of(R"({"dds": {"domain": 300}})").find("dds.domain"), std::string::npos);
   EXPECT_NE(error_of(R"({"dds": {"partiton": "x"}})").find("dds.partiton: unknown key"), std::string::npos);

@@ -1,6 +1,9 @@
 // The agent's configuration file (JSON), e.g.
 //   {"pump_id": "P-101", "model": "plant.json", "source": "replay",
-//    "schedule": {"identification_interval_s": 3600, "monitoring_interval_s": 60},
+//    "schedule": {"identification_interval_s": 3600, "monitoring_interval_s": 60, "runs": 0},
+//    "simulation": {"excitation": "multisine", "faults": ["dry_run"], "sample_rate_hz": 2048,
+//                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
+//                   "meas_periods": 4, "monitoring_s": 1, "seed": 1},
 //    "dds": {"domain": 0, "partition": "site-a"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
 //    "block_frames": 512}
@@ -10,15 +13,36 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace ambdiag::agent {
+
+// The simulated pump (source "simulate"; edge_agent/simulate.h has the
+// meaning and defaults of each).
+struct SimulationConfig {
+  std::string excitation = "multisine";  // multisine | stepsine
+  std::vector<std::string> faults;       // NAME or NAME=VALUE
+  double sample_rate_hz = 2048.0;
+  int64_t period_samples = 2048;
+  double f_min_hz = 1.0;
+  double f_max_hz = 1000.0;
+  int settle_periods = 2;
+  int meas_periods = 4;
+  double monitoring_s = 1.0;
+  uint64_t seed = 1;
+};
 
 struct AgentConfig {
   std::string pump_id;                 // empty: taken from the recording
   std::string model;                   // plant model (simulate)
   std::string source = "replay";       // replay | simulate
+  // Schedule: an identification run every identification_interval_s
+  // (the first at start), a monitoring snapshot every monitoring_interval_s
+  // (0: none); the agent stops after `runs` identification runs (0: never).
   double identification_interval_s = 3600.0;
   double monitoring_interval_s = 60.0;
+  int64_t runs = 0;
+  SimulationConfig simulation;
   int domain = 0;                      // DDS domain id, 0..232
   std::string partition = "site";      // DDS partition: one per site
   std::string spool_dir = "ambdiag-spool";
