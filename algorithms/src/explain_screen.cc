@@ -87,7 +87,7 @@ RotorScreen::RotorScreen(const PlantVariant& current, PlantFrfEvaluator& eval) :
     const auto c = std::find(cols.begin(), cols.end(), base_actuator_dof_[e]) - cols.begin();
     base_index_.push_back(static_cast<int>(r * static_cast<long>(cols.size()) + c));
   }
-  base_ = g_->block(rows, cols);
+  base_ = g_->block(rows, cols).transpose();  // entries x lines: one line's entries contiguous
   sensor_dofs_ = rows;
   actuator_dofs_ = cols;
   std::vector<int> all(static_cast<size_t>(sys.full_dof_count));
@@ -277,7 +277,7 @@ std::vector<cd> RotorScreen::residual_change(const LowRankChange& ch, const Cand
     for (size_t e = 0; e < ne; ++e) {
       if (ch.sensor_row[e] < 0 || base_index_[e] < 0) continue;
       // Against the current rotor with the sensor where it was.
-      const cd before = base_(l, base_index_[e]);
+      const cd before = base_(base_index_[e], l);
       const cd after = hsa(ch.sensor_row[e], ch.actuator_col[e]);
       out[e * lines.size() + q] = (after - before) * phase / eval_.sigma(e, static_cast<size_t>(l));
     }

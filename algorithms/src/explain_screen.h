@@ -60,7 +60,7 @@ class RotorScreen {
   std::unique_ptr<RotorReceptance> g_;
   std::vector<int> base_sensor_dof_, base_actuator_dof_;  // per measured entry, -1: not lateral
   std::vector<int> base_index_;                            // per measured entry: column of base_, -1: not lateral
-  Eigen::MatrixXcd base_;                                  // lines x (sensor DOFs x actuator DOFs): G[s, a] now
+  Eigen::MatrixXcd base_;                                  // (sensor DOFs x actuator DOFs) x lines: G[s, a] now
   // Shared blocks: G[every DOF, actuator DOFs], G[sensor DOFs, every DOF],
   // and G[U, U] per DOF set.
   std::vector<int> sensor_dofs_, actuator_dofs_;

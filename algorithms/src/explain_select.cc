@@ -38,6 +38,7 @@ struct Trial {
   double chi2_fit = 0.0, chi2_val = 0.0;
   double gain_fit = 0.0, gain_val = 0.0, threshold_fit = 0.0, threshold_val = 0.0;
   std::vector<double> sd;
+  bool cheap = false;  // figures from the low-rank model (explain_screen.h), not yet from the FE model
   bool passes() const { return gain_fit > threshold_fit && gain_val > threshold_val; }
   double margin() const { return std::min(gain_fit - threshold_fit, gain_val - threshold_val); }
 };
@@ -271,6 +272,15 @@ class Selector {
   // selected rotor changes (or the delay) changes, not when a refit moved
   // their values a little: the screen's changes are added to the exact
   // current residual, so a slightly older receptance errs to second order.
+  bool has_lowrank(detail::RotorScreen& scr, const Candidate& c) {
+    auto& slot = lowrank_[c.id];
+    if (!slot.first) {
+      slot.first = true;
+      slot.second = scr.change_of(c);
+    }
+    return slot.second.has_value();
+  }
+
   detail::RotorScreen& screen_for(const std::vector<Selected>& sel, const PlantVariant& cur) {
     std::string key;
     for (const auto& s : sel)
@@ -279,6 +289,7 @@ class Selector {
       screen_ = std::make_unique<detail::RotorScreen>(cur, eval_);
       screen_key_ = key;
       lowrank_.clear();
+      stale_gain_.clear();
     }
     return *screen_;
   }
@@ -311,6 +322,7 @@ class Selector {
       double gain;
       const Candidate* c;
       std::vector<double> start;
+      bool fresh = true;
     };
     std::vector<Screened> rotor;
     detail::RotorScreen& scr = screen_for(sel, cur);
@@ -325,10 +337,21 @@ class Selector {
         if (is_selected(sel, c)) continue;
         if (c.touches_rotor) {
           Screened sc{0.0, &c, {}};
-          const Cheap ch = cheap_screen(scr, c, r0, rv0, cf, cv, false);
-          if (ch.ok) {
-            sc.gain = ch.gain_fit;
-            sc.start = ch.x;
+          if (has_lowrank(scr, c)) {
+            // Lazy greedy: a drop screened in an earlier step on this screen
+            // bounds the drop now (what is explained only grows); only the
+            // candidates that could reach the top are screened again below.
+            const auto it = stale_gain_.find(c.id);
+            if (it != stale_gain_.end()) {
+              sc.gain = it->second.first;
+              sc.start = it->second.second;
+              sc.fresh = false;
+            } else {
+              const Cheap ch = cheap_screen(scr, c, r0, rv0, cf, cv, false);
+              sc.gain = ch.gain_fit;
+              sc.start = ch.x;
+              stale_gain_[c.id] = {sc.gain, sc.start};
+            }
             lowrank[c.is_update ? 0 : 1].push_back(std::move(sc));
             continue;
           }
@@ -340,14 +363,37 @@ class Selector {
     }
     // The best few by the linearised drop are fitted on the low-rank model;
     // they rank by the smaller of their drops on the two halves.
+    const auto by_gain = [](const Screened& a, const Screened& b) { return a.gain > b.gain; };
     for (auto& list : lowrank) {
-      std::sort(list.begin(), list.end(), [](const Screened& a, const Screened& b) { return a.gain > b.gain; });
-      if (list.size() > static_cast<size_t>(opt_.lowrank_fitted)) list.resize(static_cast<size_t>(opt_.lowrank_fitted));
+      const size_t top = std::min(list.size(), static_cast<size_t>(opt_.lowrank_fitted));
+      for (bool stale = true; stale;) {
+        std::sort(list.begin(), list.end(), by_gain);
+        stale = false;
+        for (size_t k = 0; k < top; ++k) {
+          if (list[k].fresh) continue;
+          const Cheap ch = cheap_screen(scr, *list[k].c, r0, rv0, cf, cv, false);
+          list[k].gain = ch.gain_fit;
+          list[k].start = ch.x;
+          list[k].fresh = stale = true;
+          stale_gain_[list[k].c->id] = {ch.gain_fit, ch.x};
+        }
+      }
+      list.resize(top);
+      // Fitted on the low-rank model, they compete as trials; the FE fit
+      // follows only for the one that wins (below).
       for (auto& sc : list) {
         const Cheap ch = cheap_screen(scr, *sc.c, r0, rv0, cf, cv, true, &sc.start);
-        sc.gain = std::min(ch.gain_fit, ch.gain_val);
-        sc.start = ch.x;
-        rotor.push_back(sc);
+        Trial t;
+        t.c = sc.c;
+        t.x = ch.x;
+        t.cheap = true;
+        t.gain_fit = ch.gain_fit;
+        t.gain_val = ch.gain_val;
+        t.chi2_fit = cf - ch.gain_fit;
+        t.chi2_val = cv - ch.gain_val;
+        t.threshold_fit = threshold(static_cast<int>(sc.c->params.size()), cf);
+        t.threshold_val = threshold(static_cast<int>(sc.c->params.size()), cv);
+        trials.push_back(t);
       }
     }
     std::sort(rotor.begin(), rotor.end(), [](const Screened& a, const Screened& b) { return a.gain > b.gain; });
@@ -372,15 +418,23 @@ class Selector {
     progress(fmt("step: %.0f closed-form and %.0f FE candidates screened, ", static_cast<double>(trials.size() - fitted_updates - fitted_physics),
                  static_cast<double>(rotor.size())) +
              fmt("%.0f FE fitted; %.0f rotor solves so far", fitted_updates + fitted_physics, eval_.rotor_solves()));
-    const Trial* best_update = nullptr;
-    const Trial* best_physics = nullptr;
-    for (const auto& t : trials) {
-      if (!t.passes()) continue;
-      const Trial*& b = t.c->is_update ? best_update : best_physics;
-      if (!b || t.margin() > b->margin()) b = &t;
+    // The winner; one judged on the low-rank model is fitted on the FE model
+    // (from its low-rank optimum) and must win again with exact figures.
+    for (int round = 0; round < 6; ++round) {
+      Trial* best_update = nullptr;
+      Trial* best_physics = nullptr;
+      for (auto& t : trials) {
+        if (!t.passes()) continue;
+        Trial*& b = t.c->is_update ? best_update : best_physics;
+        if (!b || t.margin() > b->margin()) b = &t;
+      }
+      Trial* win = best_update && (!best_physics || best_update->gain_val >= 0.8 * best_physics->gain_val) ? best_update : best_physics;
+      if (!win) break;
+      if (!win->cheap) return *win;
+      *win = win->c->params.empty() ? evaluate_fixed(sel, *win->c, cf, cv) : try_candidate(sel, *win->c, nullptr, cf, cv, &win->x);
     }
-    if (best_update && (!best_physics || best_update->gain_val >= 0.8 * best_physics->gain_val)) return *best_update;
-    if (best_physics) return *best_physics;
+    for (auto& t : trials)  // pairs below are fitted on the FE model
+      t.cheap = false;
     // No single candidate pays: the best pair among the three best singles.
     std::sort(trials.begin(), trials.end(), [](const Trial& a, const Trial& b) { return a.gain_val > b.gain_val; });
     std::optional<Trial> best_pair;
@@ -597,6 +651,7 @@ class Selector {
   std::unique_ptr<detail::RotorScreen> screen_;
   // Lines of the linearised/grid screening (every other fit line when there
   // are many: ranking needs the shape, not every line) and the residual there.
+  std::map<std::string, std::pair<double, std::vector<double>>> stale_gain_;  // lazy greedy bounds on this screen
   std::vector<int> screen_lines_;
   std::vector<std::complex<double>> screen_r0_;
   double screen_cf_ = 0.0;
@@ -719,7 +774,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     }
     // The earlier selections were fitted without this one: let them settle
     // together, so that the next step sees what is really left.
-    if (sel.size() > 1) sel_engine.refit_all(sel, 3);
+    if (sel.size() > 1) sel_engine.refit_all(sel, 2);
     const double nrmse_after = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
     sel.back().report.nrmse_after = nrmse_after;
     if (t->c2) sel[sel.size() - 2].report.nrmse_after = nrmse_after;
