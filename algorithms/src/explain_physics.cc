@@ -178,8 +178,10 @@ Candidate housing_mode(const ResidualView& view, const std::string& plane, const
   c.location = {{"plane", plane}, {"dirs", jd}};
   const double fmin = m.freq_hz.front(), fmax = m.freq_hz.back();
   c.params = {{"f_hz", f0, fmin, fmax, 0.005 * f0}, {"zeta", z0, 0.002, 0.6, 0.005}, {"m", m0, m0 * 1e-3, m0 * 1e3, 0.1 * m0}};
-  const std::string name = (plane == "Z" ? "housing_axial_" : "housing_" + plane + "_") + std::to_string(static_cast<int>(f0)) + "Hz";
-  c.apply = [plane, dirs, name](const std::vector<double>& x, PlantVariant& v) {
+  c.apply = [plane, dirs](const std::vector<double>& x, PlantVariant& v) {
+    // Named after the fitted frequency, not the residual peak it started at.
+    const std::string name =
+        (plane == "Z" ? "housing_axial_" : "housing_" + plane + "_") + std::to_string(static_cast<int>(std::lround(x[0]))) + "Hz";
     if (plane == "Z") {
       v.plant.axial->housings.push_back({name, x[0], x[1], x[2]});
     } else {

@@ -6,12 +6,14 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 
 #include <Eigen/Dense>
 
 #include "ambdiag/algorithms/explain.h"
 #include "ambdiag/algorithms/frf_compare.h"
+#include "explain_screen.h"
 
 namespace ambdiag {
 
@@ -36,6 +38,7 @@ struct Trial {
   double chi2_fit = 0.0, chi2_val = 0.0;
   double gain_fit = 0.0, gain_val = 0.0, threshold_fit = 0.0, threshold_val = 0.0;
   std::vector<double> sd;
+  bool cheap = false;  // figures from the low-rank model (explain_screen.h), not yet from the FE model
   bool passes() const { return gain_fit > threshold_fit && gain_val > threshold_val; }
   double margin() const { return std::min(gain_fit - threshold_fit, gain_val - threshold_val); }
 };
@@ -172,6 +175,125 @@ class Selector {
     return cf - (rv + jac * du).squaredNorm();
   }
 
+  // Screens a rotor candidate on the low-rank model of the current rotor
+  // (explain_screen.h): linearised drop first; `fit` also fits its
+  // parameters on that model (no FE solve) and gives the drop on both halves.
+  struct Cheap {
+    bool ok = false;
+    double gain_fit = 0.0, gain_val = 0.0;
+    std::vector<double> x;
+  };
+  Cheap cheap_screen(detail::RotorScreen& scr, const Candidate& c, const std::vector<std::complex<double>>& r0,
+                     const std::vector<std::complex<double>>& rv0, double cf, double cv, bool fit,
+                     const std::vector<double>* start = nullptr) {
+    Cheap out;
+    auto& slot = lowrank_[c.id];
+    if (!slot.first) {
+      slot.first = true;
+      slot.second = scr.change_of(c);
+    }
+    if (!slot.second) return out;
+    const detail::LowRankChange& ch = *slot.second;
+    auto resid = [&](const std::vector<double>& x, const std::vector<int>& lines, const std::vector<std::complex<double>>& base) {
+      auto d = scr.residual_change(ch, c, x, lines);
+      for (size_t k = 0; k < d.size(); ++k) d[k] += base[k];
+      return d;
+    };
+    out.ok = true;
+    const std::vector<double> x0 = neutral(c);
+    if (!fit || c.params.empty()) {
+      // Linearised drop from one step per parameter (exact columns: dZ is linear).
+      Eigen::MatrixXd jac(2 * static_cast<Eigen::Index>(screen_r0_.size()), static_cast<Eigen::Index>(c.params.size()));
+      const auto d0 = resid(x0, screen_lines_, screen_r0_);
+      for (size_t i = 0; i < c.params.size(); ++i) {
+        std::vector<double> x = x0;
+        double h = 1e-3 * c.params[i].scale;
+        if (x[i] + h > c.params[i].upper) h = -h;
+        x[i] += h;
+        const auto d = resid(x, screen_lines_, screen_r0_);
+        for (size_t k = 0; k < d.size(); ++k) {
+          const auto col = (d[k] - d0[k]) * (c.params[i].scale / h);
+          jac(2 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(i)) = col.real();
+          jac(2 * static_cast<Eigen::Index>(k) + 1, static_cast<Eigen::Index>(i)) = col.imag();
+        }
+      }
+      Eigen::VectorXd rv(jac.rows());
+      for (size_t k = 0; k < d0.size(); ++k) {
+        rv(2 * static_cast<Eigen::Index>(k)) = d0[k].real();
+        rv(2 * static_cast<Eigen::Index>(k) + 1) = d0[k].imag();
+      }
+      out.x = x0;
+      if (c.params.empty()) {
+        out.gain_fit = cf - chi2_of(resid(x0, fit_, r0));
+        out.gain_val = cv - chi2_of(resid(x0, val_, rv0));
+        return out;
+      }
+      Eigen::VectorXd du = (jac.transpose() * jac).ldlt().solve(-jac.transpose() * rv);
+      for (size_t i = 0; i < c.params.size(); ++i) {
+        const auto& fp = c.params[i];
+        out.x[i] = std::clamp(x0[i] + du(static_cast<Eigen::Index>(i)) * fp.scale, fp.lower, fp.upper);
+      }
+      out.gain_fit = screen_cf_ - chi2_of(resid(out.x, screen_lines_, screen_r0_));
+      // A large change is far from linear (a mode moves by more than its
+      // bandwidth): also try a grid over the first parameter's range,
+      // geometric for factors and masses that span decades, and keep the
+      // best point actually evaluated.
+      const FitParameter& fp = c.params[0];
+      const bool geometric = fp.lower > 0 && fp.upper > 4 * fp.lower;
+      constexpr int kGrid = 8;
+      for (int g = 0; g < kGrid; ++g) {
+        std::vector<double> x = x0;
+        const double t = (g + 0.5) / kGrid;
+        if (geometric) x[0] = fp.lower * std::pow(fp.upper / fp.lower, t);
+        else if (fp.lower == 0.0 && fp.upper > 0.0) x[0] = fp.upper * std::pow(1e-3, 1.0 - t);  // masses: decades up to the bound
+        else x[0] = fp.lower + t * (fp.upper - fp.lower);
+        const double gain = screen_cf_ - chi2_of(resid(x, screen_lines_, screen_r0_));
+        if (gain > out.gain_fit) {
+          out.gain_fit = gain;
+          out.x = x;
+        }
+      }
+      return out;
+    }
+    ParameterFitOptions fo;
+    fo.max_iterations = 12;
+    fo.rel_tolerance = 1e-4;
+    std::vector<FitParameter> params = c.params;
+    if (start)
+      for (size_t i = 0; i < params.size(); ++i) params[i].initial = (*start)[i];
+    const ParameterFitResult fr = fit_least_squares([&](const std::vector<double>& x) { return resid(x, fit_, r0); }, params, fo);
+    out.x = fr.x;
+    out.gain_fit = cf - fr.chi2;
+    out.gain_val = cv - chi2_of(resid(fr.x, val_, rv0));
+    return out;
+  }
+
+  // The low-rank screen of the current rotor. It is rebuilt when the set of
+  // selected rotor changes (or the delay) changes, not when a refit moved
+  // their values a little: the screen's changes are added to the exact
+  // current residual, so a slightly older receptance errs to second order.
+  bool has_lowrank(detail::RotorScreen& scr, const Candidate& c) {
+    auto& slot = lowrank_[c.id];
+    if (!slot.first) {
+      slot.first = true;
+      slot.second = scr.change_of(c);
+    }
+    return slot.second.has_value();
+  }
+
+  detail::RotorScreen& screen_for(const std::vector<Selected>& sel, const PlantVariant& cur) {
+    std::string key;
+    for (const auto& s : sel)
+      if (s.c.touches_rotor || s.c.physics == "acquisition_delay") key += s.c.id + "|";
+    if (!screen_ || key != screen_key_) {
+      screen_ = std::make_unique<detail::RotorScreen>(cur, eval_);
+      screen_key_ = key;
+      lowrank_.clear();
+      stale_gain_.clear();
+    }
+    return *screen_;
+  }
+
   Trial evaluate_fixed(const std::vector<Selected>& sel, const Candidate& c, double cf, double cv) {
     Trial t;
     t.c = &c;
@@ -200,17 +322,78 @@ class Selector {
       double gain;
       const Candidate* c;
       std::vector<double> start;
+      bool fresh = true;
     };
     std::vector<Screened> rotor;
+    detail::RotorScreen& scr = screen_for(sel, cur);
+    const auto rv0 = eval_.residual(cur, val_);
+    screen_lines_.clear();
+    for (size_t k = 0; k < fit_.size(); k += fit_.size() > 200 ? 2 : 1) screen_lines_.push_back(fit_[k]);
+    screen_r0_ = eval_.residual(cur, screen_lines_);
+    screen_cf_ = chi2_of(screen_r0_);
+    std::vector<Screened> lowrank[2];  // updates, physics with a low-rank model
     for (const auto* pool : {&updates, &physics}) {
       for (const auto& c : *pool) {
         if (is_selected(sel, c)) continue;
         if (c.touches_rotor) {
           Screened sc{0.0, &c, {}};
+          if (has_lowrank(scr, c)) {
+            // Lazy greedy: a drop screened in an earlier step on this screen
+            // bounds the drop now (what is explained only grows); only the
+            // candidates that could reach the top are screened again below.
+            const auto it = stale_gain_.find(c.id);
+            if (it != stale_gain_.end()) {
+              sc.gain = it->second.first;
+              sc.start = it->second.second;
+              sc.fresh = false;
+            } else {
+              const Cheap ch = cheap_screen(scr, c, r0, rv0, cf, cv, false);
+              sc.gain = ch.gain_fit;
+              sc.start = ch.x;
+              stale_gain_[c.id] = {sc.gain, sc.start};
+            }
+            lowrank[c.is_update ? 0 : 1].push_back(std::move(sc));
+            continue;
+          }
           sc.gain = screen(sel, c, r0, cf, state, cur.delay_s, &sc.start);
           rotor.push_back(std::move(sc));
         }
         else trials.push_back(try_candidate(sel, c, nullptr, cf, cv));
+      }
+    }
+    // The best few by the linearised drop are fitted on the low-rank model;
+    // they rank by the smaller of their drops on the two halves.
+    const auto by_gain = [](const Screened& a, const Screened& b) { return a.gain > b.gain; };
+    for (auto& list : lowrank) {
+      const size_t top = std::min(list.size(), static_cast<size_t>(opt_.lowrank_fitted));
+      for (bool stale = true; stale;) {
+        std::sort(list.begin(), list.end(), by_gain);
+        stale = false;
+        for (size_t k = 0; k < top; ++k) {
+          if (list[k].fresh) continue;
+          const Cheap ch = cheap_screen(scr, *list[k].c, r0, rv0, cf, cv, false);
+          list[k].gain = ch.gain_fit;
+          list[k].start = ch.x;
+          list[k].fresh = stale = true;
+          stale_gain_[list[k].c->id] = {ch.gain_fit, ch.x};
+        }
+      }
+      list.resize(top);
+      // Fitted on the low-rank model, they compete as trials; the FE fit
+      // follows only for the one that wins (below).
+      for (auto& sc : list) {
+        const Cheap ch = cheap_screen(scr, *sc.c, r0, rv0, cf, cv, true, &sc.start);
+        Trial t;
+        t.c = sc.c;
+        t.x = ch.x;
+        t.cheap = true;
+        t.gain_fit = ch.gain_fit;
+        t.gain_val = ch.gain_val;
+        t.chi2_fit = cf - ch.gain_fit;
+        t.chi2_val = cv - ch.gain_val;
+        t.threshold_fit = threshold(static_cast<int>(sc.c->params.size()), cf);
+        t.threshold_val = threshold(static_cast<int>(sc.c->params.size()), cv);
+        trials.push_back(t);
       }
     }
     std::sort(rotor.begin(), rotor.end(), [](const Screened& a, const Screened& b) { return a.gain > b.gain; });
@@ -235,15 +418,23 @@ class Selector {
     progress(fmt("step: %.0f closed-form and %.0f FE candidates screened, ", static_cast<double>(trials.size() - fitted_updates - fitted_physics),
                  static_cast<double>(rotor.size())) +
              fmt("%.0f FE fitted; %.0f rotor solves so far", fitted_updates + fitted_physics, eval_.rotor_solves()));
-    const Trial* best_update = nullptr;
-    const Trial* best_physics = nullptr;
-    for (const auto& t : trials) {
-      if (!t.passes()) continue;
-      const Trial*& b = t.c->is_update ? best_update : best_physics;
-      if (!b || t.margin() > b->margin()) b = &t;
+    // The winner; one judged on the low-rank model is fitted on the FE model
+    // (from its low-rank optimum) and must win again with exact figures.
+    for (int round = 0; round < 6; ++round) {
+      Trial* best_update = nullptr;
+      Trial* best_physics = nullptr;
+      for (auto& t : trials) {
+        if (!t.passes()) continue;
+        Trial*& b = t.c->is_update ? best_update : best_physics;
+        if (!b || t.margin() > b->margin()) b = &t;
+      }
+      Trial* win = best_update && (!best_physics || best_update->gain_val >= 0.8 * best_physics->gain_val) ? best_update : best_physics;
+      if (!win) break;
+      if (!win->cheap) return *win;
+      *win = win->c->params.empty() ? evaluate_fixed(sel, *win->c, cf, cv) : try_candidate(sel, *win->c, nullptr, cf, cv, &win->x);
     }
-    if (best_update && (!best_physics || best_update->gain_val >= 0.8 * best_physics->gain_val)) return *best_update;
-    if (best_physics) return *best_physics;
+    for (auto& t : trials)  // pairs below are fitted on the FE model
+      t.cheap = false;
     // No single candidate pays: the best pair among the three best singles.
     std::sort(trials.begin(), trials.end(), [](const Trial& a, const Trial& b) { return a.gain_val > b.gain_val; });
     std::optional<Trial> best_pair;
@@ -264,7 +455,7 @@ class Selector {
   }
 
   // Refits every selected parameter together.
-  void refit_all(std::vector<Selected>& sel) {
+  void refit_all(std::vector<Selected>& sel, int max_iterations = 6) {
     std::vector<FitParameter> params;
     std::vector<size_t> offset;
     for (const auto& s : sel) {
@@ -283,7 +474,7 @@ class Selector {
       return s2;
     };
     ParameterFitOptions fo;
-    fo.max_iterations = 6;
+    fo.max_iterations = max_iterations;
     const ParameterFitResult fr = fit_parameters(eval_, [&](const std::vector<double>& x) { return build(unpack(x)); }, params, fit_, fo);
     evaluations_ += fr.evaluations;
     sel = unpack(fr.x);
@@ -292,6 +483,23 @@ class Selector {
       for (size_t i = 0; i < sel[k].c.params.size(); ++i)
         if (std::isfinite(fr.sd[offset[k] + i])) sd[sel[k].c.params[i].name] = fr.sd[offset[k] + i];
       sel[k].report.sd = sd;
+    }
+  }
+
+  // An update at its bound and a physics candidate that scale the same
+  // coefficients (same direction key) are one change beyond the bounds:
+  // the physics with the product of the factors.
+  void fold_updates(std::vector<Selected>& sel) {
+    for (size_t a = 0; a < sel.size(); ++a) {
+      for (size_t b = 0; b < sel.size(); ++b) {
+        if (a == b || !sel[a].c.is_update || sel[b].c.is_update || sel[a].c.direction_key.empty() ||
+            sel[a].c.direction_key != sel[b].c.direction_key || sel[a].x.size() != 1 || sel[b].x.size() != 1)
+          continue;
+        sel[b].x[0] = std::clamp(sel[b].x[0] * sel[a].x[0], sel[b].c.params[0].lower, sel[b].c.params[0].upper);
+        progress("folded " + sel[a].c.id + " into " + sel[b].c.id);
+        sel.erase(sel.begin() + static_cast<long>(a));
+        return fold_updates(sel);
+      }
     }
   }
 
@@ -381,8 +589,27 @@ class Selector {
     }
   }
 
-  // Drops selections whose removal costs less than their penalty on either half.
+  // Drops selections whose removal costs less than their penalty on either
+  // half, and updates whose change is within kSignificantSd standard
+  // deviations (of the joint refit) of the nominal value in every parameter.
   void prune(std::vector<Selected>& sel) {
+    constexpr double kSignificantSd = 3.0;
+    for (size_t k = 0; k < sel.size();) {
+      bool significant = !sel[k].c.is_update || sel[k].c.params.empty();
+      for (size_t i = 0; i < sel[k].c.params.size() && !significant; ++i) {
+        const auto& fp = sel[k].c.params[i];
+        const double change = std::abs(sel[k].x[i] - fp.initial);
+        const auto it = sel[k].report.sd.find(fp.name);
+        // No sd (at a bound or not refitted): judged by the chi2 rule alone.
+        significant = it == sel[k].report.sd.end() || change > kSignificantSd * it->get<double>();
+      }
+      if (significant) {
+        ++k;
+        continue;
+      }
+      progress("dropped " + sel[k].c.id + " (change within " + fmt("%.0f", kSignificantSd) + " sd of the nominal value)");
+      sel.erase(sel.begin() + static_cast<long>(k));
+    }
     bool dropped = true;
     while (dropped && !sel.empty()) {
       dropped = false;
@@ -421,6 +648,15 @@ class Selector {
   double penalty_per_param_ = 0.0;
   int evaluations_ = 0;
   std::map<std::string, std::vector<std::complex<double>>> dcache_;
+  std::unique_ptr<detail::RotorScreen> screen_;
+  // Lines of the linearised/grid screening (every other fit line when there
+  // are many: ranking needs the shape, not every line) and the residual there.
+  std::map<std::string, std::pair<double, std::vector<double>>> stale_gain_;  // lazy greedy bounds on this screen
+  std::vector<int> screen_lines_;
+  std::vector<std::complex<double>> screen_r0_;
+  double screen_cf_ = 0.0;
+  std::string screen_key_;
+  std::map<std::string, std::pair<bool, std::optional<detail::LowRankChange>>> lowrank_;
 };
 
 double nrmse_of(const FrfData& model, const FrfData& measured) { return compare_frf(model, measured).nrmse; }
@@ -536,6 +772,9 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
       s.report.nrmse_before = nrmse_before;
       sel.push_back(std::move(s));
     }
+    // The earlier selections were fitted without this one: let them settle
+    // together, so that the next step sees what is really left.
+    if (sel.size() > 1) sel_engine.refit_all(sel, 2);
     const double nrmse_after = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
     sel.back().report.nrmse_after = nrmse_after;
     if (t->c2) sel[sel.size() - 2].report.nrmse_after = nrmse_after;
@@ -543,6 +782,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
              fmt(": chi2 on held-out lines -%.4g (penalty %.4g), nrmse %.4f", t->gain_val, t->threshold_val, nrmse_after));
   }
   if (!sel.empty()) {
+    sel_engine.fold_updates(sel);
     sel_engine.refit_all(sel);
     const size_t before_prune = sel.size();
     sel_engine.refine_locations(sel);

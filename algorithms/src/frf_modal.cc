@@ -8,17 +8,12 @@
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
 #include "frf_pole_sum.h"
+#include "rotor_receptance.h"
 
 namespace ambdiag::detail {
 
-Eigen::MatrixXcd lateral_frf_modal(const RotorSystem& sys, const LateralMaps& maps, const std::vector<double>& w,
-                                   FrfReport& report) {
-  using cd = std::complex<double>;
-  const double t0 = now_s();
-  const Eigen::Index n = sys.size(), n_out = maps.c_out.rows(), n_in = maps.b_in.cols();
-  report.method = "modal, all eigenvalues (dense)";
-  if (n_out == 0 || n_in == 0) return Eigen::MatrixXcd(static_cast<Eigen::Index>(w.size()), n_out * n_in);
-
+ModalFactors modal_factors(const RotorSystem& sys) {
+  const Eigen::Index n = sys.size();
   // Balance the state: velocities scaled by a typical frequency, so that the
   // blocks of the first-order matrix have similar norms; this conditions the
   // eigenvectors (a similarity transform, exact in exact arithmetic).
@@ -28,16 +23,31 @@ Eigen::MatrixXcd lateral_frf_modal(const RotorSystem& sys, const LateralMaps& ma
   a.bottomLeftCorner(n, n) /= s;
   Eigen::EigenSolver<Eigen::MatrixXd> es(a);
   if (es.info() != Eigen::Success) throw InputError("rotor eigenproblem did not converge");
-  const Eigen::VectorXcd lam = es.eigenvalues();
+  ModalFactors f;
+  f.eigenvalues = es.eigenvalues();
   // The real pseudo-eigenvector matrix P (A P = P D, D with 2 x 2 blocks for
   // complex pairs) spans the same modes as the complex eigenvectors, and a
   // real LU of it costs a quarter of a complex one; the sum over the poles
   // stays real too (frf_pole_sum.h).
   const Eigen::MatrixXd& pv = es.pseudoEigenvectors();
-  Eigen::MatrixXd bs = Eigen::MatrixXd::Zero(2 * n, n_in);  // state input [0; M^-1 B]
-  bs.bottomRows(n) = Eigen::MatrixXd(sys.m).ldlt().solve(maps.b_in) / s;
-  const Eigen::MatrixXd y = pv.partialPivLu().solve(bs);
-  const PoleSum sum(lam, maps.c_out * pv.topRows(n), y);
+  f.top = pv.topRows(n);
+  Eigen::MatrixXd bs = Eigen::MatrixXd::Zero(2 * n, n);  // state input [0; M^-1]
+  bs.bottomRows(n) = Eigen::MatrixXd(sys.m).ldlt().solve(Eigen::MatrixXd::Identity(n, n)) / s;
+  f.right = pv.partialPivLu().solve(bs);
+  return f;
+}
+
+Eigen::MatrixXcd lateral_frf_modal(const RotorSystem& sys, const LateralMaps& maps, const std::vector<double>& w,
+                                   FrfReport& report) {
+  using cd = std::complex<double>;
+  const double t0 = now_s();
+  const Eigen::Index n = sys.size(), n_out = maps.c_out.rows(), n_in = maps.b_in.cols();
+  report.method = "modal, all eigenvalues (dense)";
+  if (n_out == 0 || n_in == 0) return Eigen::MatrixXcd(static_cast<Eigen::Index>(w.size()), n_out * n_in);
+
+  const ModalFactors f = modal_factors(sys);
+  const Eigen::VectorXcd& lam = f.eigenvalues;
+  const PoleSum sum(lam, maps.c_out * f.top, f.right * maps.b_in);
   const Eigen::Index ns = 2 * n;
   report.poles = static_cast<int>(ns);
   for (Eigen::Index i = 0; i < ns; ++i) report.poles_in_band += std::abs(lam(i)) <= w.back() ? 1 : 0;

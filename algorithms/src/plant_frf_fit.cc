@@ -30,6 +30,59 @@ PlantModel rotor_part(const PlantModel& p) {
   return r;
 }
 
+// Every value the lateral rotor FRF depends on, as raw bytes (a cache key:
+// cheaper than serialising the JSON of the rotor part on every evaluation).
+class Fingerprint {
+ public:
+  template <typename T>
+  void add(const T& v) {
+    key_.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void add(const std::string& s) {
+    add(s.size());
+    key_ += s;
+  }
+  std::string take() { return std::move(key_); }
+
+ private:
+  std::string key_;
+};
+
+std::string rotor_fingerprint(const PlantModel& p, double rpm) {
+  Fingerprint f;
+  f.add(rpm);
+  for (const auto& [name, m] : p.materials) {
+    f.add(name);
+    f.add(m.e_pa), f.add(m.g_pa), f.add(m.rho_kg_per_m3);
+  }
+  f.add(p.shaft.size());
+  for (const auto& e : p.shaft) {
+    f.add(e.length_m), f.add(e.od_m), f.add(e.id_m), f.add(e.material), f.add(e.added_mass_kg_per_m);
+  }
+  f.add(p.disks.size());
+  for (const auto& d : p.disks) f.add(d.node), f.add(d.m_kg), f.add(d.id_kg_m2), f.add(d.ip_kg_m2);
+  f.add(p.links.size());
+  for (const auto& l : p.links) {
+    f.add(l.node);
+    for (double c : l.coef) f.add(c);
+    f.add(l.table.size());
+    for (const auto& row : l.table) {
+      f.add(row.rpm);
+      for (const auto& v : row.values) f.add(v ? 1 : 0), f.add(v.value_or(0.0));
+    }
+  }
+  f.add(static_cast<int>(p.structural_damping.kind)), f.add(p.structural_damping.zeta);
+  f.add(static_cast<int>(p.reduction.kind)), f.add(p.reduction.n_elastic_modes);
+  for (const auto* points : {&p.sensors, &p.actuators}) {
+    f.add(points->size());
+    for (const auto& m : *points) {
+      if (m.is_axial()) continue;
+      f.add(m.name), f.add(m.plane), f.add(m.node.value_or(-1)), f.add(m.dir);
+    }
+  }
+  return f.take();
+}
+
 std::string lines_key(const std::vector<int>& lines) {
   long s = 0;
   for (size_t k = 0; k < lines.size(); ++k) s += static_cast<long>(lines[k]) * static_cast<long>(k % 7 + 1);
@@ -62,18 +115,15 @@ PlantFrfEvaluator::PlantFrfEvaluator(const FrfData& measured) : measured_(measur
   }
 }
 
-std::string PlantFrfEvaluator::rotor_key(const PlantModel& plant) const {
-  return std::to_string(speed_rpm(plant)) + "|" + plant_to_json(rotor_part(plant)).dump();
-}
+std::string PlantFrfEvaluator::rotor_key(const PlantModel& plant) const { return rotor_fingerprint(plant, speed_rpm(plant)); }
 
 double PlantFrfEvaluator::speed_rpm(const PlantModel& plant) const { return measured_.speed_rpm.value_or(plant.speed_rpm); }
 
 const std::vector<std::vector<std::complex<double>>>& PlantFrfEvaluator::lateral(const PlantModel& plant,
                                                                                 const std::vector<int>& lines) {
-  const PlantModel rp = rotor_part(plant);
-  const std::string key = lines_key(lines) + "|" + std::to_string(speed_rpm(plant)) + "|" + plant_to_json(rp).dump();
-  // (rotor_key() is the same without the lines.)
+  const std::string key = lines_key(lines) + "|" + rotor_key(plant);
   if (auto it = cache_.find(key); it != cache_.end()) return it->second;
+  const PlantModel rp = rotor_part(plant);
   if (cache_.size() > 256) cache_.clear();
 
   std::vector<std::vector<std::complex<double>>> out(measured_.entries.size());
@@ -143,13 +193,18 @@ FrfData PlantFrfEvaluator::model_frf(const PlantVariant& v) {
 
 ParameterFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder& build, const std::vector<FitParameter>& params,
                                   const std::vector<int>& lines, const ParameterFitOptions& options) {
+  return fit_least_squares([&](const std::vector<double>& x) { return eval.residual(build(x), lines); }, params, options);
+}
+
+ParameterFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
+                                     const ParameterFitOptions& options) {
   const int p = static_cast<int>(params.size());
   ParameterFitResult res;
   std::vector<double> x(params.size());
   for (int i = 0; i < p; ++i) x[i] = std::clamp(params[i].initial, params[i].lower, params[i].upper);
   auto residual_of = [&](const std::vector<double>& xv) {
     ++res.evaluations;
-    return eval.residual(build(xv), lines);
+    return residual(xv);
   };
   auto stack = [](const std::vector<std::complex<double>>& r) {
     Eigen::VectorXd v(2 * static_cast<Eigen::Index>(r.size()));

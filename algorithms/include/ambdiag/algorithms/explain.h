@@ -46,6 +46,7 @@ struct ExplainOptions {
   double window_threshold = 4.0;         // band rule: 9-line mean of |r|^2 above this
   double relative_penalty = 0.002;       // of the current chi2, per accepted step
   int rotor_candidates_fitted = 1;       // FE updates and FE physics fitted fully per step (after screening)
+  int lowrank_fitted = 4;                // per step, updates and physics fitted on the low-rank model (explain_screen.h)
   std::function<void(const std::string&)> progress;  // one line per stage; may be empty
 };
 

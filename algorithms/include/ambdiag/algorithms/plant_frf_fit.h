@@ -100,6 +100,11 @@ ParameterFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder&
                                   const std::vector<FitParameter>& params, const std::vector<int>& lines,
                                   const ParameterFitOptions& options = {});
 
+// The same Levenberg-Marquardt on any weighted complex residual r(x).
+using ResidualFunction = std::function<std::vector<std::complex<double>>(const std::vector<double>& x)>;
+ParameterFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
+                                     const ParameterFitOptions& options = {});
+
 double chi2_of(const std::vector<std::complex<double>>& r);
 
 }  // namespace ambdiag
