@@ -43,9 +43,12 @@ struct UsageError : std::runtime_error {
 const char* kUsage =
     "usage: ambdiag-agent replay RUN_DIR [--fast] [--domain D] [options]\n"
     "       ambdiag-agent simulate --model PLANT.json --pump ID [--fault NAME ...] [--domain D] [options]\n"
+    "       ambdiag-agent forward [--spool-dir DIR] [--domain D] [options]\n"
     "\n"
     "Streams runs over Cyclone DDS to `ambdiag serve`; exits 0 once every sample is\n"
     "acknowledged as committed and the server verified the run's count and checksum.\n"
+    "Runs left in the spool by an earlier agent (killed, restarted) are sent first;\n"
+    "`forward` sends only those.\n"
     "\n"
     "options:\n"
     "  --config FILE        agent configuration (JSON; see edge_agent/README.md)\n"
@@ -80,9 +83,10 @@ Cli parse(int argc, char** argv) {
                                                     "--spool-limit", "--block-frames", "--timeout", "--model",
                                                     "--runs", "--seed"};
   Cli c;
-  if (argc < 2) throw UsageError("missing command (replay or simulate)");
+  if (argc < 2) throw UsageError("missing command (replay, simulate or forward)");
   c.command = argv[1];
-  if (c.command != "replay" && c.command != "simulate") throw UsageError("unknown command '" + c.command + "'");
+  if (c.command != "replay" && c.command != "simulate" && c.command != "forward")
+    throw UsageError("unknown command '" + c.command + "'");
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--fast") {
@@ -152,6 +156,38 @@ bool stream_one(stream::AgentEndpoints& ep, RunRecording run, const agent::Agent
   return r.complete;
 }
 
+// Sends the runs an earlier agent left in the spool (docs/streaming.md,
+// "Store-and-forward"); true if there were none or the server verified all.
+bool forward_backlog(stream::AgentEndpoints& ep, const agent::AgentConfig& cfg, const agent::StreamOptions& opt) {
+  bool all_ok = true;
+  for (const auto& dir : agent::Spool::pending_runs(cfg.spool_dir)) {
+    std::vector<std::string> problems;
+    std::unique_ptr<agent::Spool> spool;
+    try {
+      spool = agent::Spool::recover(dir, cfg.spool_limit_bytes, cfg.memory_blocks, problems);
+    } catch (const std::exception& e) {  // InputError, filesystem_error
+      std::fprintf(stderr, "ambdiag-agent: spool: %s: left in place\n", e.what());
+      all_ok = false;
+      continue;
+    }
+    for (const auto& p : problems) std::fprintf(stderr, "ambdiag-agent: spool: %s\n", p.c_str());
+    const std::string run_id = spool->header()->run_id;
+    std::fprintf(stderr, "ambdiag-agent: forwarding spooled run %s: %zu blocks held, %s\n", run_id.c_str(),
+                 spool->size(), spool->end() ? "complete recording" : "cut off (no run end)");
+    const agent::StreamResult r = agent::forward_spooled(ep, *spool, opt);
+    std::fprintf(stderr, "ambdiag-agent: spooled run %s: %s: %s (%lld blocks, %lld sent)\n", run_id.c_str(),
+                 r.complete ? "committed" : "NOT committed", r.message.c_str(), static_cast<long long>(r.n_blocks),
+                 static_cast<long long>(r.blocks_sent));
+    all_ok = r.complete && all_ok;
+    if (g_stop) break;
+    if (!r.server_verdict) {  // no server: do not wait out every spooled run in turn
+      std::fprintf(stderr, "ambdiag-agent: spooled runs left for the next start\n");
+      break;
+    }
+  }
+  return all_ok;
+}
+
 int run(const Cli& c) {
   const agent::AgentConfig cfg = config_from(c);
   agent::StreamOptions opt;
@@ -159,10 +195,16 @@ int run(const Cli& c) {
   if (c.has("--timeout")) opt.timeout = std::chrono::seconds(integer_option(c, "--timeout", 1, 86400));
   opt.stop_requested = [] { return g_stop.load(); };
 
+  if (c.command == "forward") {
+    if (!c.positional.empty()) throw UsageError("forward takes no positional arguments");
+    stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+    return forward_backlog(ep, cfg, opt) ? 0 : 1;
+  }
   if (c.command == "replay") {
     if (c.positional.size() != 1) throw UsageError("replay needs exactly one RUN_DIR");
     RunRecording run = read_run(c.positional[0]);
     stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+    forward_backlog(ep, cfg, opt);
     return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
   }
   // simulate: identification runs every identification_interval_s, the
@@ -201,6 +243,7 @@ int run(const Cli& c) {
     snapshots = std::make_unique<agent::SnapshotPublisher>(ep, cfg.pump_id, std::make_unique<agent::PumpSimulator>(plant, mon),
                                                            cfg.monitoring_interval_s);
   }
+  forward_backlog(ep, cfg, opt);
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   auto seconds = [&] { return std::chrono::duration<double>(clock::now() - t0).count(); };

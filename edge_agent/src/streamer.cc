@@ -20,12 +20,47 @@ int64_t now_unix_ns() {
 
 class RunStream {
  public:
+  // A new run from its source: the header goes to the spool first.
   RunStream(stream::AgentEndpoints& ep, RecordingSource& src, Spool& spool, std::string pump_id,
             const StreamOptions& opt)
-      : ep_(ep), src_(src), spool_(spool), pump_id_(std::move(pump_id)), opt_(opt), ws_(ep.participant) {
+      : ep_(ep), src_(&src), spool_(spool), opt_(opt), ws_(ep.participant) {
     ws_.attach_data(ep_.ack);
-    run_id_ = src_.run().run_id;
-    header_json_ = run_to_json(src_.run()).dump();
+    hdr_ = SpooledHeader{src.run().run_id,
+                         std::move(pump_id),
+                         run_to_json(src.run()).dump(),
+                         static_cast<uint32_t>(src.run().channels.size()),
+                         src.run().sample_rate_hz,
+                         src.frames_per_block()};
+    spool_.write_header(hdr_);
+  }
+
+  // A run an earlier agent left in the spool: no source; blocks no longer in
+  // the spool were acknowledged before (their segment was deleted). Without
+  // an end the source was cut off: the run is ended as aborted.
+  RunStream(stream::AgentEndpoints& ep, Spool& spool, const StreamOptions& opt)
+      : ep_(ep), src_(nullptr), spool_(spool), opt_(opt), ws_(ep.participant), hdr_(*spool.header()) {
+    ws_.attach_data(ep_.ack);
+    const std::vector<int64_t> held = spool_.seqs();
+    produced_ = spool_.end() ? spool_.end()->n_blocks : (held.empty() ? 0 : held.back() + 1);
+    acked_.assign(static_cast<size_t>(produced_), 1);
+    for (int64_t s : held)
+      if (s < produced_) acked_[static_cast<size_t>(s)] = 0;
+    for (char a : acked_) acked_count_ += a;
+    while (first_unacked_ < produced_ && acked_[static_cast<size_t>(first_unacked_)]) ++first_unacked_;
+    send_cursor_ = first_unacked_;
+    source_done_ = true;
+    if (spool_.end()) {
+      total_frames_ = spool_.end()->total_frames;
+      checksum_ = spool_.end()->checksum;
+    } else {
+      for (int64_t s : held) {
+        const Block b = spool_.get(s);
+        total_frames_ = std::max(total_frames_, b.first_frame + b.n_frames);
+      }
+      end_aborted_ = true;
+      end_reason_ = "agent restarted before the run's end: source lost after " + std::to_string(total_frames_) +
+                    " frames";
+    }
   }
 
   StreamResult run() {
@@ -52,8 +87,11 @@ class RunStream {
       ws_.wait(next_wait(now));
     }
     release_instances();
+    // Every block acknowledged and the verdict in: the spool is done.
+    if (final_) spool_.remove();
+    result_.server_verdict = final_;
     result_.n_blocks = produced_;
-    result_.total_frames = src_.frames_produced();
+    result_.total_frames = total_frames_;
     result_.checksum = checksum_;
     heartbeat(Clock::now(), ambdiag_stream_AGENT_DONE);
     return result_;
@@ -63,12 +101,12 @@ class RunStream {
   void send_header() {
     ambdiag_stream_RunHeader h{};
     h.protocol_version = stream::kProtocolVersion;
-    h.run_id = const_cast<char*>(run_id_.c_str());
-    h.pump_id = const_cast<char*>(pump_id_.c_str());
-    h.header_json = const_cast<char*>(header_json_.c_str());
-    h.n_channels = static_cast<uint32_t>(src_.run().channels.size());
-    h.sample_rate_hz = src_.run().sample_rate_hz;
-    h.frames_per_block = src_.frames_per_block();
+    h.run_id = const_cast<char*>(hdr_.run_id.c_str());
+    h.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
+    h.header_json = const_cast<char*>(hdr_.header_json.c_str());
+    h.n_channels = hdr_.n_channels;
+    h.sample_rate_hz = hdr_.sample_rate_hz;
+    h.frames_per_block = hdr_.frames_per_block;
     ep_.header.write(h);
   }
 
@@ -79,17 +117,17 @@ class RunStream {
     try {
       char empty[] = "";
       ambdiag_stream_RunHeader h{};
-      h.run_id = const_cast<char*>(run_id_.c_str());
+      h.run_id = const_cast<char*>(hdr_.run_id.c_str());
       h.pump_id = h.header_json = empty;
       ep_.header.unregister(h);
       if (end_sent_) {
         ambdiag_stream_RunEnd e{};
-        e.run_id = const_cast<char*>(run_id_.c_str());
+        e.run_id = const_cast<char*>(hdr_.run_id.c_str());
         e.pump_id = e.reason = empty;
         ep_.end.unregister(e);
       }
     } catch (const dds::DdsError& e) {
-      std::fprintf(stderr, "ambdiag-agent: releasing run %s: %s\n", run_id_.c_str(), e.what());
+      std::fprintf(stderr, "ambdiag-agent: releasing run %s: %s\n", hdr_.run_id.c_str(), e.what());
     }
   }
 
@@ -97,8 +135,8 @@ class RunStream {
     last_heartbeat_ = now;
     ambdiag_stream_AgentStatus s{};
     s.protocol_version = stream::kProtocolVersion;
-    s.pump_id = const_cast<char*>(pump_id_.c_str());
-    s.run_id = const_cast<char*>(run_id_.c_str());
+    s.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
+    s.run_id = const_cast<char*>(hdr_.run_id.c_str());
     s.spool_bytes = spool_.disk_bytes();
     s.spool_limit_bytes = spool_.limit_bytes();
     s.spool_full = spool_full_;
@@ -113,7 +151,7 @@ class RunStream {
 
   void take_acks() {
     ep_.ack.take(4096, [&](const ambdiag_stream_Ack& a, const dds_sample_info_t&) {
-      if (run_id_ != a.run_id) return;
+      if (hdr_.run_id != a.run_id) return;
       if (!stream::compatible(a.protocol_version)) {
         if (!warned_version_)
           std::fprintf(stderr, "ambdiag-agent: server speaks protocol %s, this agent %s: ignoring its acks\n",
@@ -142,18 +180,21 @@ class RunStream {
   }
 
   void produce(Clock::time_point now) {
+    if (!src_) return;
     const int64_t due = opt_.paced ? static_cast<int64_t>(std::chrono::duration<double>(now - start_).count() *
-                                                           src_.run().sample_rate_hz)
+                                                           hdr_.sample_rate_hz)
                                    : INT64_MAX;
     for (int i = 0; i < 64 && !source_done_; ++i) {
-      if (src_.frames_produced() >= due) break;
+      if (src_->frames_produced() >= due) break;
       // As fast as possible: a file source waits for the server rather than
       // filling the spool, except while no server is there (store-and-forward).
       if (!opt_.paced && matched_ > 0 && produced_ - first_unacked_ >= static_cast<int64_t>(2 * opt_.window_blocks))
         break;
-      if (!pending_) pending_ = src_.next();
+      if (!pending_) pending_ = src_->next();
       if (!pending_) {
         source_done_ = true;
+        total_frames_ = src_->frames_produced();
+        spool_.write_end(SpooledEnd{produced_, total_frames_, checksum_});
         break;
       }
       // The block's checksum and the run's, in one pass over the payload.
@@ -207,7 +248,7 @@ class RunStream {
       const Block b = spool_.get(send_cursor_);
       ambdiag_stream_SampleBlock s{};
       s.protocol_version = stream::kProtocolVersion;
-      s.run_id = const_cast<char*>(run_id_.c_str());
+      s.run_id = const_cast<char*>(hdr_.run_id.c_str());
       s.seq = b.seq;
       s.first_frame = b.first_frame;
       s.n_frames = b.n_frames;
@@ -220,12 +261,13 @@ class RunStream {
     }
   }
 
-  void send_end(bool aborted = false, const std::string& reason = "") {
+  void send_end() { send_end(end_aborted_, end_reason_); }
+  void send_end(bool aborted, const std::string& reason) {
     ambdiag_stream_RunEnd e{};
     e.protocol_version = stream::kProtocolVersion;
-    e.run_id = const_cast<char*>(run_id_.c_str());
-    e.pump_id = const_cast<char*>(pump_id_.c_str());
-    e.total_frames = src_.frames_produced();
+    e.run_id = const_cast<char*>(hdr_.run_id.c_str());
+    e.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
+    e.total_frames = src_ ? src_->frames_produced() : total_frames_;
     e.n_blocks = produced_;
     e.checksum = checksum_;
     e.aborted = aborted;
@@ -270,12 +312,14 @@ class RunStream {
   }
 
   stream::AgentEndpoints& ep_;
-  RecordingSource& src_;
+  RecordingSource* src_;  // null: a run recovered from the spool
   Spool& spool_;
-  std::string pump_id_;
   const StreamOptions& opt_;
   dds::WaitSet ws_;
-  std::string run_id_, header_json_;
+  SpooledHeader hdr_;
+  bool end_aborted_ = false;
+  std::string end_reason_;
+  int64_t total_frames_ = 0;
 
   Clock::time_point start_, last_progress_, last_ack_progress_, last_heartbeat_, end_sent_at_;
   std::optional<Block> pending_;
@@ -292,6 +336,11 @@ class RunStream {
 StreamResult stream_run(stream::AgentEndpoints& ep, RecordingSource& source, Spool& spool, const std::string& pump_id,
                         const StreamOptions& opt) {
   RunStream s(ep, source, spool, pump_id, opt);
+  return s.run();
+}
+
+StreamResult forward_spooled(stream::AgentEndpoints& ep, Spool& spool, const StreamOptions& opt) {
+  RunStream s(ep, spool, opt);
   return s.run();
 }
 

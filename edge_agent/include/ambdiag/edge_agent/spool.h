@@ -1,54 +1,126 @@
-// Store-and-forward buffer of one run's unacknowledged blocks.
+// Store-and-forward buffer of one run, durable across agent restarts.
 //
-// The first `memory_blocks` blocks stay in memory; further ones go to files
-// in `dir` (one per block, written to a temporary name and renamed, checksum
-// verified when read back), up to `limit_bytes` on disk. A block leaves the
-// spool when the server acknowledges it as committed. put() refuses a block
-// when the disk part is full; the caller then pauses its source and reports
-// the spool full in its status.
+// A run's folder in `dir` holds header.json (the run header, written to a
+// temporary name, fsynced and renamed), the blocks in append-only segment
+// files seg-NNNNNN.log (each record framed by a length and two checksums, so
+// a torn last record is detected and dropped, never forwarded) and, once the
+// source has produced everything, end.json (count and checksum, atomic like
+// the header). Every block goes to disk; up to `memory_blocks` unacknowledged
+// blocks are also kept in memory so sending does not read them back. A block
+// leaves the spool when the server acknowledges it as committed; a segment
+// whose blocks are all acknowledged is deleted, and the folder when the
+// server gave its verdict on the whole run (remove()). put() refuses a block
+// when the segments on disk would exceed `limit_bytes`; the caller then
+// pauses its source and reports the spool full in its status.
+//
+// A restarted agent lists the folders left behind (pending_runs) and opens
+// each with recover(), which reads the header, the end if any and every
+// intact block, and reports what it dropped.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <map>
-#include <set>
+#include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "ambdiag/edge_agent/block.h"
 
 namespace ambdiag::agent {
 
+// What the run header message carries (header.json).
+struct SpooledHeader {
+  std::string run_id;
+  std::string pump_id;
+  std::string header_json;  // run.json text without samples
+  uint32_t n_channels = 0;
+  double sample_rate_hz = 0.0;
+  uint32_t frames_per_block = 0;
+};
+
+// What the run end carries (end.json), written when the source is done.
+struct SpooledEnd {
+  int64_t n_blocks = 0;
+  int64_t total_frames = 0;
+  uint64_t checksum = 0;  // FNV-1a 64 of the whole run
+};
+
 class Spool {
  public:
-  // `dir` is created if missing; the run gets its own sub-folder, removed
-  // when the spool is destroyed empty.
+  // A new run: `dir` is created if missing; files an earlier agent left for
+  // the same run id are removed (the source produces the run again).
   Spool(const std::filesystem::path& dir, const std::string& run_id, uint64_t limit_bytes, size_t memory_blocks);
   ~Spool();
   Spool(const Spool&) = delete;
   Spool& operator=(const Spool&) = delete;
 
+  // Run folders under `dir` left by an earlier agent (empty if none).
+  static std::vector<std::filesystem::path> pending_runs(const std::filesystem::path& dir);
+  // Opens a folder left by an earlier agent. Damaged or torn records are
+  // dropped (a truncated tail is cut off the file) and described in
+  // `problems`; throws InputError if header.json is missing or unreadable.
+  static std::unique_ptr<Spool> recover(const std::filesystem::path& run_dir, uint64_t limit_bytes,
+                                        size_t memory_blocks, std::vector<std::string>& problems);
+
+  void write_header(const SpooledHeader& h);
+  void write_end(const SpooledEnd& e);
+  const std::optional<SpooledHeader>& header() const { return header_; }
+  const std::optional<SpooledEnd>& end() const { return end_; }
+
   // Stores the block; false (nothing stored) if it does not fit.
   bool put(const Block& b);
   // Would a block of this payload size be accepted now?
   bool has_room(size_t payload_bytes) const;
-  // The stored block; throws std::runtime_error if a spool file is damaged.
+  // The stored block; throws std::runtime_error if its record is damaged.
   Block get(int64_t seq) const;
-  bool contains(int64_t seq) const { return memory_.count(seq) > 0 || on_disk_.count(seq) > 0; }
+  bool contains(int64_t seq) const { return index_.count(seq) > 0; }
   void erase(int64_t seq);
+  // Sequence numbers held, ascending.
+  std::vector<int64_t> seqs() const;
+  // fsync the open segment (put() does it at most every 100 ms by itself).
+  void sync();
+  // The server has every block and gave its verdict: delete the folder.
+  void remove();
 
-  size_t size() const { return memory_.size() + on_disk_.size(); }
+  size_t size() const { return index_.size(); }
   size_t memory_blocks() const { return memory_.size(); }
   uint64_t disk_bytes() const { return disk_bytes_; }
   uint64_t limit_bytes() const { return limit_bytes_; }
+  const std::filesystem::path& folder() const { return run_dir_; }
 
  private:
-  std::filesystem::path file_of(int64_t seq) const;
+  struct Where {
+    int64_t segment;
+    uint64_t offset;  // of the record in its segment
+    uint32_t payload_bytes;
+  };
+  struct Segment {
+    uint64_t bytes = 0;
+    int64_t live = 0;  // blocks not yet acknowledged
+  };
+  Spool(std::filesystem::path run_dir, uint64_t limit_bytes, size_t memory_blocks);
+  std::filesystem::path segment_path(int64_t segment) const;
+  void open_segment(int64_t segment);
+  void close_segment();
+  void drop_segment(int64_t segment);
 
   std::filesystem::path run_dir_;
   uint64_t limit_bytes_;
   size_t memory_limit_;
+  uint64_t segment_limit_;
+  std::optional<SpooledHeader> header_;
+  std::optional<SpooledEnd> end_;
   std::map<int64_t, Block> memory_;
-  std::map<int64_t, uint64_t> on_disk_;  // seq -> file size
+  std::map<int64_t, Where> index_;
+  std::map<int64_t, Segment> segments_;
+  int64_t current_ = -1;  // segment open for appending
+  int64_t next_segment_ = 0;
+  int fd_ = -1;
+  bool dirty_ = false;
+  std::chrono::steady_clock::time_point last_sync_{};
   uint64_t disk_bytes_ = 0;
 };
 

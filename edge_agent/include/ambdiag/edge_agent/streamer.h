@@ -33,6 +33,7 @@ struct StreamOptions {
 
 struct StreamResult {
   bool complete = false;  // the server verified count and checksum
+  bool server_verdict = false;  // the server answered (complete or not); the spool was removed
   std::string message;    // the server's verdict or why the agent gave up
   int64_t n_blocks = 0;
   int64_t total_frames = 0;
@@ -44,5 +45,10 @@ struct StreamResult {
 
 StreamResult stream_run(stream::AgentEndpoints& ep, RecordingSource& source, Spool& spool, const std::string& pump_id,
                         const StreamOptions& opt);
+
+// Sends a run an earlier agent left in `spool` (Spool::recover): its header,
+// the blocks still held and its end (aborted if the source was cut off
+// before the end), then removes the spool once the server has given its verdict.
+StreamResult forward_spooled(stream::AgentEndpoints& ep, Spool& spool, const StreamOptions& opt);
 
 }  // namespace ambdiag::agent
