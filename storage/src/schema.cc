@@ -159,11 +159,11 @@ void set_pragmas(Db& db, bool read_only) {
   db.check(sqlite3_busy_timeout(db.get(), 10000), "busy_timeout");
   // A reader must not turn a rollback-journal file into WAL behind a writer's back.
   if (!read_only) {
-    // 64 KiB pages for a new file: a 30 KiB chunk then sits in its table
-    // page instead of an overflow chain of 4 KiB pages; inserts take half
-    // the CPU and run 2.3x faster (docs/benchmarks.md). Only a file without
-    // pages takes it; an existing file keeps its page size.
-    if (pragma_int(db, "PRAGMA page_count") == 0) db.exec("PRAGMA page_size = 65536", "pragmas");
+    // SQLite's default 4 KiB pages. 64 KiB pages made inserts of 30 KiB
+    // chunks 2.3x faster, but a WAL reader then stalled for the whole busy
+    // timeout in about 1 of 8 runs of the REST test that reads a run while
+    // it is written (Rest.ARunStillReceiving...; cause not found yet), so
+    // they are off until that is understood (docs/storage.md).
     Stmt wal(db, "PRAGMA journal_mode = WAL");
     if (!wal.step() || wal.col_text(0) != "wal")
       throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");

@@ -154,15 +154,20 @@ TEST_F(Rest, ARunStillReceivingIsServedConsistentlyWhileTheWriterAddsChunks) {
   auto c = client();
   int downloads = 0;
   bool consistent = true;
+  std::string what;
   do {  // no ASSERT here: the writer thread must be joined whatever happens
     const auto r = c.Get(runs_url(header.run_id) + "/samples.f32");
     // Whatever has arrived is a whole number of chunks, each the right bytes (in order here).
     consistent = r && r->status == 200 && r->body.size() % (64 * 16) == 0 &&
                  r->body == ambdiag::testing::as_string(std::span(bytes).subspan(0, r->body.size()));
+    if (!consistent)
+      what = r ? "status " + std::to_string(r->status) + ", " + std::to_string(r->body.size()) + " bytes: " +
+                     r->body.substr(0, 200)
+               : "no reply: " + httplib::to_string(r.error());
     ++downloads;
   } while (!done && consistent);
   w.join();
-  EXPECT_TRUE(consistent) << "download " << downloads << " disagreed with the chunks written";
+  EXPECT_TRUE(consistent) << "download " << downloads << " disagreed with the chunks written: " << what;
   EXPECT_GE(downloads, 1);
   const auto info = body(c.Get(runs_url(header.run_id)));
   EXPECT_EQ(info["status"], "receiving");
@@ -220,7 +225,9 @@ TEST_F(Rest, SixtyKeepAliveClientsAreAllServed) {
     threads.emplace_back([&, i] {
       httplib::Client c("127.0.0.1", port_);
       c.set_keep_alive(true);
-      c.set_read_timeout(20, 0);
+      // What is tested is that no request is dropped; a loaded 2-core CI
+      // machine once took over 20 s for one reply among 60 busy clients.
+      c.set_read_timeout(60, 0);
       for (int k = 0; k < kRequests; ++k) {
         const auto r = c.Get((i + k) % 2 ? "/api/v1/health" : runs_url(kRefRunId));
         if (r && r->status == 200) ++ok;
