@@ -7,10 +7,7 @@
 //
 // Prints per case the median wall time and CPU time (user + sys of this
 // process) over the repetitions, and the model FRF evaluations.
-#include <sys/resource.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -19,18 +16,9 @@
 #include "ambdiag/algorithms/diagnosis.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
+#include "bench_util.h"
 
 namespace {
-
-double cpu_s() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-double wall_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -54,11 +42,11 @@ int main(int argc, char** argv) {
     std::vector<double> wall, cpu;
     ambdiag::DiagnosisResult r;
     for (int k = 0; k < reps; ++k) {
-      const double w0 = wall_s(), c0 = cpu_s();
+      const double w0 = ambdiag::bench::wall_seconds(), c0 = ambdiag::bench::cpu_seconds();
       const ambdiag::ReferenceStatistics ref = ambdiag::reference_statistics(refs);
       r = ambdiag::diagnose(plant, ref, meas);
-      wall.push_back(wall_s() - w0);
-      cpu.push_back(cpu_s() - c0);
+      wall.push_back(ambdiag::bench::wall_seconds() - w0);
+      cpu.push_back(ambdiag::bench::cpu_seconds() - c0);
     }
     std::printf("%-28s %10.3f %10.3f %8d  %s\n", c.c_str(), median(wall), median(cpu), r.evaluations,
                 r.faults.empty() ? "(not detected)" : r.faults.front().name.c_str());

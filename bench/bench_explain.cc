@@ -4,8 +4,6 @@
 //
 //   bench_explain [-v] [CASE ...]   (default: the four explain_* cases;
 //                                    -v: progress, explanations and updates on stderr)
-#include <sys/resource.h>
-
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -15,16 +13,9 @@
 #include "ambdiag/algorithms/explain.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
+#include "bench_util.h"
 
-namespace {
-
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-}  // namespace
+using ambdiag::bench::cpu_seconds;
 
 int main(int argc, char** argv) {
   const char* env = std::getenv("AMBDIAG_SHARED_DATA");

@@ -18,19 +18,16 @@
 
 #include "ambdiag/algorithms/frf_synthesis.h"
 #include "ambdiag/core/plant_model.h"
+#include "bench_util.h"
 
 namespace {
+
+using ambdiag::bench::median;
 
 double clock_s(clockid_t id) {
   timespec ts{};
   clock_gettime(id, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 std::string load_average() {

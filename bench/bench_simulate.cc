@@ -5,9 +5,6 @@
 // as run_ref_1) and 8192 Hz (as run_stepsine).
 //
 //   bench_simulate [PLANT.json]
-#include <sys/resource.h>
-
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -15,20 +12,10 @@
 
 #include "ambdiag/algorithms/amb_loop.h"
 #include "ambdiag/core/plant_model.h"
+#include "bench_util.h"
 
-namespace {
-
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-double wall_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
+using ambdiag::bench::cpu_seconds;
+using ambdiag::bench::wall_seconds;
 
 int main(int argc, char** argv) {
   const char* env = std::getenv("AMBDIAG_SHARED_DATA");

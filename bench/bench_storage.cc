@@ -6,7 +6,6 @@
 // Every figure: wall time and CPU time (user + sys of this process, which
 // holds both HTTP client and server in the REST figures).
 #include <sqlite3.h>
-#include <sys/resource.h>
 
 #include <atomic>
 #include <chrono>
@@ -24,6 +23,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
+#include "bench_util.h"
 
 namespace {
 
@@ -35,18 +35,11 @@ constexpr int kChannels = 16;
 constexpr std::int64_t kFramesPerChunk = 512;  // 16 x 4 x 512 = 32 KiB
 constexpr std::size_t kChunkBytes = kChannels * 4 * kFramesPerChunk;
 
-double cpu_s() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
 struct Timer {
   std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
-  double c0 = cpu_s();
+  double c0 = ambdiag::bench::cpu_seconds();
   double wall() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
-  double cpu() const { return cpu_s() - c0; }
+  double cpu() const { return ambdiag::bench::cpu_seconds() - c0; }
 };
 
 void report(const char* what, double bytes, const Timer& t) {

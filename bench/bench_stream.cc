@@ -36,6 +36,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/storage/historian.h"
+#include "bench_util.h"
 #include "process.h"
 
 namespace {
@@ -43,6 +44,7 @@ namespace {
 namespace fs = std::filesystem;
 using ambdiag::testing::Process;
 using Clock = std::chrono::steady_clock;
+using ambdiag::bench::median;
 using namespace std::chrono_literals;
 
 constexpr uint32_t kBlockFrames = 512;
@@ -50,14 +52,6 @@ constexpr int kChannels = 15;
 constexpr double kRateHz = 8000.0;
 
 double secs(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
-
-// CPU seconds (user + sys) of reaped children so far.
-double children_cpu_s() {
-  rusage ru{};
-  getrusage(RUSAGE_CHILDREN, &ru);
-  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
 
 // Peak resident memory of a running process (VmHWM), MB.
 double peak_rss_mb(pid_t pid) {
@@ -130,13 +124,6 @@ struct E2e {
   int failed = 0;
 };
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 // The server's last line: "... committed; S s from the first block received to the last commit; ..."
 double span_from_log(const std::string& log) {
   const std::regex re(R"(committed; ([0-9.]+) s from the first block)");
@@ -152,7 +139,7 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
   fs::remove(e.dir / "bench.db-shm");
   auto server = e.server(server_extra);
   std::this_thread::sleep_for(1s);  // server up and discovered
-  const double cpu0 = children_cpu_s();
+  const double cpu0 = ambdiag::bench::cpu_seconds(RUSAGE_CHILDREN);
   const auto t0 = Clock::now();
   std::vector<std::unique_ptr<Process>> agents;
   for (const auto& r : runs) agents.push_back(e.agent(r, fast));
@@ -171,7 +158,7 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
   out.server_cpu_s = process_cpu_s(server->pid());
   server->signal(SIGTERM);
   server->wait(30s);
-  out.cpu_s = children_cpu_s() - cpu0;
+  out.cpu_s = ambdiag::bench::cpu_seconds(RUSAGE_CHILDREN) - cpu0;
   out.mb_per_s = bytes / out.wall_s / 1e6;
   out.span_s = span_from_log(server->log());
   {
@@ -217,8 +204,7 @@ double storage_ceiling(const fs::path& dir, const std::vector<ambdiag::RunRecord
   fs::remove(db);
   auto h = ambdiag::storage::Historian::open(db.string());
   double bytes = 0;
-  rusage r0{}, r1{};
-  getrusage(RUSAGE_SELF, &r0);
+  const double cpu0 = ambdiag::bench::cpu_seconds();
   const auto t0 = Clock::now();
   for (const auto& run : runs) {
     h.begin_run(ambdiag::storage::run_header_from_json(ambdiag::run_to_json(run).dump()));
@@ -237,9 +223,7 @@ double storage_ceiling(const fs::path& dir, const std::vector<ambdiag::RunRecord
     }
   }
   const double wall = secs(Clock::now() - t0);
-  getrusage(RUSAGE_SELF, &r1);
-  *cpu_s = static_cast<double>(r1.ru_utime.tv_sec - r0.ru_utime.tv_sec + r1.ru_stime.tv_sec - r0.ru_stime.tv_sec) +
-           1e-6 * static_cast<double>(r1.ru_utime.tv_usec - r0.ru_utime.tv_usec + r1.ru_stime.tv_usec - r0.ru_stime.tv_usec);
+  *cpu_s = ambdiag::bench::cpu_seconds() - cpu0;
   return bytes / wall / 1e6;
 }
 
