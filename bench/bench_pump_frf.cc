@@ -3,7 +3,7 @@
 // figure that does not depend on the others' load), median over
 // repetitions, with the phases of the synthesis report and the load average.
 //
-//   bench_pump_frf [--reps N] [--basis automatic|all|krylov|direct] [--loops K]
+//   bench_pump_frf [--reps N] [--basis automatic|all|krylov|direct] [--loops K] [--tol T]
 //
 // Each repetition runs the synthesis K times (default 20) and reports the
 // mean per call, so that a repetition lasts long enough for the clocks.
@@ -42,11 +42,13 @@ std::string load_average() {
 int main(int argc, char** argv) {
   int reps = 7, loops = 20;
   std::string basis = "automatic";
+  double tol = ambdiag::FrfSynthesisOptions{}.krylov_tol;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     if (flag == "--reps") reps = std::max(1, std::atoi(argv[i + 1]));
     else if (flag == "--loops") loops = std::max(1, std::atoi(argv[i + 1]));
     else if (flag == "--basis") basis = argv[i + 1];
+    else if (flag == "--tol") tol = std::atof(argv[i + 1]);
     else {
       std::fprintf(stderr, "unknown option %s\n", flag.c_str());
       return 2;
@@ -57,6 +59,7 @@ int main(int argc, char** argv) {
   const ambdiag::PlantModel plant = ambdiag::read_plant_file(dir + "/reference_pump/plant.json");
   const std::vector<double> f = ambdiag::frequency_grid(1.0, 1000.0, 1.0);
   ambdiag::FrfSynthesisOptions o;
+  o.krylov_tol = tol;
   if (basis != "direct") {
     o.method = ambdiag::FrfMethod::modal;
     if (basis == "all") o.modal_basis = ambdiag::ModalBasis::all;

@@ -376,7 +376,9 @@ DiagnosisResult diagnose(const PlantModel& plant, const ReferenceStatistics& ref
   res.chi2_after = best.chi2;
   res.nrmse_after = best.nrmse;
   const double noise_floor = 0.5 * res.threshold;  // the detection threshold in complex-chi2 units
-  res.explained = best.chi2 <= noise_floor + options.unexplained_share * std::max(res.chi2_before - n_values, 0.0);
+  // The healthy expectation of chi2 (N, or more with an estimated sigma).
+  const double healthy_chi2 = 0.5 * a.t_mean();
+  res.explained = best.chi2 <= noise_floor + options.unexplained_share * std::max(res.chi2_before - healthy_chi2, 0.0);
   // The best model's pure FRF for plots.
   if (is_plant_fault(best.hypothesis.kind)) {
     for (const auto& s : screened)

@@ -2,6 +2,8 @@
 // statistics, per-entry symptoms, row / column shares and bands.
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 #include <map>
 
 #include "ambdiag/algorithms/chi_square.h"
@@ -16,8 +18,61 @@ int Aligned::values() const {
   return n;
 }
 
+double Aligned::t_mean() const {
+  double m = 0.0;
+  for (const auto& e : entries)
+    for (double x : e.t_mean) m += x;
+  return m;
+}
+
+namespace {
+
+// Real degrees of freedom of the measured sigma^2 (metadata `sigma_dof`,
+// written by `ambdiag frf`); infinity when the file states none.
+double sigma_dof(const FrfData& measured) {
+  const auto text = measured.meta("sigma_dof");
+  if (!text) return std::numeric_limits<double>::infinity();
+  char* end = nullptr;
+  const double nu = std::strtod(text->c_str(), &end);
+  if (end == text->c_str() || *end != '\0' || !std::isfinite(nu))
+    throw InputError("measured FRF: sigma_dof: '" + *text + "' is not a number");
+  if (!(nu > 4.0))
+    throw InputError("measured FRF: sigma_dof: " + *text +
+                     " degrees of freedom are too few for the chi2 test (more than 4 needed; measure more periods)");
+  return nu;
+}
+
+// t = 2 |dH|^2 / (u_hat + v) with u_hat = u chi2_nu / nu: a share phi =
+// u / (u + v) of the denominator is estimated, so it has the relative
+// variance of a chi2 with nu / phi^2 degrees of freedom, and t / 2 is F(2,
+// nu_eff): mean nu / (nu - 2), variance nu^3 / ((nu - 2)^2 (nu - 4)).
+// (E 1/u_hat = nu / (nu - 2) / u: without this a healthy run measured over
+// 16 periods, nu = 30, would raise T by 7 % and alarm.)
+void t_moments(double phi, double nu, double& mean, double& var) {
+  const double nu_eff = phi > 0.0 ? nu / (phi * phi) : std::numeric_limits<double>::infinity();
+  if (!std::isfinite(nu_eff) || nu_eff > 1e12) {
+    mean = 2.0;
+    var = 4.0;
+    return;
+  }
+  mean = 2.0 * nu_eff / (nu_eff - 2.0);
+  var = 4.0 * nu_eff * nu_eff * nu_eff / ((nu_eff - 2.0) * (nu_eff - 2.0) * (nu_eff - 4.0));
+}
+
+// A sum with mean mu and variance var as g chi2_h (Satterthwaite):
+// g = var / (2 mu), h = 2 mu^2 / var.
+struct ScaledChi2 {
+  double g = 1.0, h = 1.0;
+  ScaledChi2(double mu, double var) : g(var / (2.0 * mu)), h(2.0 * mu * mu / var) {}
+  double quantile(double p) const { return g * chi2_quantile(p, h); }
+  double sf(double x) const { return chi2_sf(x / g, h); }
+};
+
+}  // namespace
+
 Aligned align(const ReferenceStatistics& ref, const FrfData& measured) {
   const size_t lines = ref.freq_hz.size();
+  const double nu = sigma_dof(measured);
   if (measured.freq_hz.size() != lines)
     throw InputError("measured FRF: " + std::to_string(measured.freq_hz.size()) + " lines, the references have " +
                      std::to_string(lines));
@@ -34,11 +89,14 @@ Aligned align(const ReferenceStatistics& ref, const FrfData& measured) {
   for (const auto& me : measured.entries) {
     const ReferenceEntryStatistics* r = ref.find(me.output, me.input);
     if (!r) continue;
-    AlignedEntry e{me.output, me.input, me.h, r->mean, std::vector<double>(lines)};
+    AlignedEntry e{me.output, me.input, me.h, r->mean, std::vector<double>(lines), std::vector<double>(lines), 0.0};
     const bool sigma = me.sigma.size() == lines;
     for (size_t l = 0; l < lines; ++l) {
       const double u = sigma ? r->kappa * me.sigma[l] * me.sigma[l] : r->var_run[l];
       e.var[l] = u + r->var_mean[l];
+      double var = 0.0;
+      t_moments(sigma && e.var[l] > 0.0 ? u / e.var[l] : 0.0, nu, e.t_mean[l], var);
+      e.t_var += var;
     }
     // A line without any noise (all zero) cannot be weighted: floor it at
     // a tiny fraction of the entry's typical variance.
@@ -54,37 +112,44 @@ Aligned align(const ReferenceStatistics& ref, const FrfData& measured) {
 
 void detect(const Aligned& a, const DiagnosisOptions& opt, DiagnosisResult& res) {
   const size_t lines = a.freq_hz.size();
-  std::vector<double> per_entry(a.entries.size(), 0.0), per_line(lines, 0.0);
-  double total = 0.0;
+  std::vector<double> per_entry(a.entries.size(), 0.0), per_line(lines, 0.0), entry_mean(a.entries.size(), 0.0);
+  double total = 0.0, total_mean = 0.0, total_var = 0.0;
   for (size_t e = 0; e < a.entries.size(); ++e) {
     const AlignedEntry& en = a.entries[e];
     for (size_t l = 0; l < lines; ++l) {
       const double t = 2.0 * std::norm(en.h[l] - en.mean[l]) / en.var[l];
       per_entry[e] += t;
-      per_line[l] += t - 2.0;  // excess over its expectation
+      entry_mean[e] += en.t_mean[l];
+      per_line[l] += t - en.t_mean[l];  // excess over its expectation
     }
     total += per_entry[e];
+    total_mean += entry_mean[e];
+    total_var += en.t_var;
   }
+  // T is chi2 with 2 x values degrees of freedom when sigma is exact;
+  // otherwise the scaled chi2 with T's mean and variance.
+  const ScaledChi2 dist(total_mean, total_var);
   res.alpha = opt.alpha;
-  res.dof = 2.0 * static_cast<double>(a.values());
+  res.dof = dist.h;
   res.statistic = total;
-  res.threshold = chi2_quantile(1.0 - opt.alpha, res.dof);
-  res.p_value = chi2_sf(total, res.dof);
+  res.threshold = dist.quantile(1.0 - opt.alpha);
+  res.p_value = dist.sf(total);
   res.detected = total > res.threshold;
 
   // Entries that changed, Bonferroni over the entries.
-  const double entry_dof = 2.0 * static_cast<double>(lines);
   const double alpha_entry = opt.alpha / static_cast<double>(a.entries.size());
   std::vector<Symptom> entries;
   std::map<std::string, double> row, col;
   double excess_sum = 0.0;
   for (size_t e = 0; e < a.entries.size(); ++e) {
-    const double p = chi2_sf(per_entry[e], entry_dof);
-    const double excess = std::max(per_entry[e] - entry_dof, 0.0);
+    const ScaledChi2 entry_dist(entry_mean[e], a.entries[e].t_var);
+    const double p = entry_dist.sf(per_entry[e]);
+    const double excess = std::max(per_entry[e] - entry_mean[e], 0.0);
     row[a.entries[e].output] += excess;
     col[a.entries[e].input] += excess;
     excess_sum += excess;
-    if (p < alpha_entry) entries.push_back({"entry", a.entries[e].output, a.entries[e].input, per_entry[e], entry_dof, p, 0.0, 0.0});
+    if (p < alpha_entry)
+      entries.push_back({"entry", a.entries[e].output, a.entries[e].input, per_entry[e], entry_dist.h, p, 0.0, 0.0});
   }
   std::sort(entries.begin(), entries.end(), [](const Symptom& x, const Symptom& y) { return x.statistic - x.dof > y.statistic - y.dof; });
   if (entries.size() > 10) entries.resize(10);

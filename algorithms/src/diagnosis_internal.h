@@ -15,6 +15,11 @@ struct AlignedEntry {
   std::vector<std::complex<double>> h;     // measured
   std::vector<std::complex<double>> mean;  // reference mean
   std::vector<double> var;                 // of H - mean: u + v
+  // Moments of t = 2 |H - mean|^2 / var per line on the healthy machine:
+  // 2 and 4 when var is known, more when u rests on a sigma estimated with
+  // few degrees of freedom (align()).
+  std::vector<double> t_mean;
+  double t_var = 0.0;  // summed over the lines
 };
 
 struct Aligned {
@@ -22,6 +27,7 @@ struct Aligned {
   double speed_rpm = 0.0;
   std::vector<AlignedEntry> entries;
   int values() const;  // complex values (entries x lines)
+  double t_mean() const;  // expected detection statistic on the healthy machine
 };
 
 Aligned align(const ReferenceStatistics& ref, const FrfData& measured);

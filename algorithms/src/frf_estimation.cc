@@ -282,6 +282,7 @@ FrfEstimate estimate_frf(const RunRecording& run, const FrfEstimationOptions& op
   frf.set_meta("method", est.method);
   frf.set_meta("excitation", to_string(run.excitation->type));
   frf.set_meta("averages", std::to_string(est.averages));
+  if (est.sigma_dof > 0) frf.set_meta("sigma_dof", std::to_string(est.sigma_dof));
   // The FRF file's metadata keys are unique: number the warnings.
   for (size_t k = 0; k < est.warnings.size(); ++k)
     frf.set_meta("warning_" + std::to_string(k + 1), est.warnings[k]);

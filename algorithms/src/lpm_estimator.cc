@@ -185,6 +185,7 @@ FrfEstimate estimate_lpm(const RunRecording& run, const ChannelPlan& plan,
   est.frf = out.finish(est.warnings, est.lines_dropped, "lpm");
   est.lines_dropped += unexcited;
   est.averages = n_seg;
+  est.sigma_dof = 2 * dof;
   return est;
 }
 

@@ -111,6 +111,7 @@ FrfEstimate estimate_stepsine(const RunRecording& run, const ChannelPlan& plan,
   Eigen::MatrixXd coh(n_out, n_in);
   double periods_sum = 0.0;
   long periods_count = 0;
+  int min_bins = -1;  // complex degrees of freedom of the pooled noise, fewest over the lines
   for (size_t g = 0; g < order.size();) {
     size_t end = g + 1;
     const double f_hz = ex.segments[order[g]].freq_hz;
@@ -165,6 +166,7 @@ FrfEstimate estimate_stepsine(const RunRecording& run, const ChannelPlan& plan,
       continue;
     }
     out.note_rcond(f_hz, sol.rcond, options.warn_rcond);
+    min_bins = min_bins < 0 ? bins : std::min(min_bins, bins);
     periods /= static_cast<double>(exps.size());
     periods_sum += periods;
     ++periods_count;
@@ -183,6 +185,7 @@ FrfEstimate estimate_stepsine(const RunRecording& run, const ChannelPlan& plan,
   }
   est.frf = out.finish(est.warnings, est.lines_dropped, "stepsine");
   est.averages = periods_count > 0 ? std::lround(periods_sum / static_cast<double>(periods_count)) : 0;
+  est.sigma_dof = min_bins > 0 ? 2 * min_bins : 0;  // the noise bins pooled over a line's steps, fewest
   return est;
 }
 

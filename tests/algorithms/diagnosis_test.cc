@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <random>
 
+#include "ambdiag/algorithms/chi_square.h"
 #include "ambdiag/algorithms/diagnosis.h"
 #include "ambdiag/algorithms/frf_compare.h"
 #include "ambdiag/core/error.h"
@@ -98,6 +99,64 @@ TEST(Diagnosis, FalseAlarmRateMatchesAlpha) {
   RecordProperty("alarms_of_200_at_alpha_0.05", alarms);
   EXPECT_GE(alarms, 3);
   EXPECT_LE(alarms, 19);
+}
+
+// A measured sigma rests on few periods: sigma_hat^2 = sigma^2 chi2_nu / nu
+// per line, independent of the noise on H. Each term of T then has the
+// mean 2 nu / (nu - 2) instead of 2 (7 % more at nu = 30), and a healthy
+// machine would alarm every time at 25,000 values; with the file's
+// `sigma_dof` the test keeps its false-alarm rate.
+TEST(Diagnosis, EstimatedSigmaWithItsDegreesOfFreedomKeepsTheFalseAlarmRate) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = read_frf_csv(data_file("reference_pump/frf_ref_1.csv").string());
+  const FrfData clean = model_frf_like(plant, like);
+  const int nu = 30;
+  std::mt19937_64 rng(20261122);
+  std::chi_squared_distribution<double> chi2(nu);
+  auto measured = [&]() {
+    FrfData m = testing::with_noise(clean, like, rng);
+    for (auto& e : m.entries)
+      for (double& s : e.sigma) s *= std::sqrt(chi2(rng) / nu);
+    return m;
+  };
+  DiagnosisOptions opt;
+  opt.alpha = 0.05;
+  opt.detect_only = true;
+  int unaware = 0;
+  for (int k = 0; k < 10; ++k) unaware += diagnose(plant, shared_reference(), measured(), opt).detected;
+  EXPECT_GE(unaware, 9) << "without sigma_dof the bias should alarm";
+  int alarms = 0;
+  const int n = 200;
+  for (int k = 0; k < n; ++k) {
+    FrfData m = measured();
+    m.set_meta("sigma_dof", std::to_string(nu));
+    const DiagnosisResult r = diagnose(plant, shared_reference(), m, opt);
+    alarms += r.detected;
+    if (k == 0) {
+      EXPECT_LT(r.dof, 2.0 * 25 * 1000);  // heavier tails than chi2_50000
+      EXPECT_GT(r.threshold, chi2_quantile(0.95, 2.0 * 25 * 1000));
+    }
+  }
+  RecordProperty("alarms_of_200_at_alpha_0.05_nu_30", alarms);
+  // Binomial(200, 0.05): mean 10, sd 3.1.
+  EXPECT_GE(alarms, 3);
+  EXPECT_LE(alarms, 19);
+}
+
+TEST(Diagnosis, RefusesTooFewOrUnreadableSigmaDegreesOfFreedom) {
+  const PlantModel plant = reference_plant();
+  FrfData m = read_frf_csv(data_file("reference_pump/frf_ref_1.csv").string());
+  DiagnosisOptions opt;
+  opt.detect_only = true;
+  for (const char* bad : {"4", "two", "nan", "-3"}) {
+    m.set_meta("sigma_dof", bad);
+    try {
+      diagnose(plant, shared_reference(), m, opt);
+      ADD_FAILURE() << "sigma_dof " << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("sigma_dof"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // The paper's case: no water in the pump. Detected, dry run first, the

@@ -82,6 +82,16 @@ TEST(FrfEstimation, MultisineReferenceRunIsUnbiasedWithinItsReportedNoise) {
   EXPECT_EQ(est.frf.freq_hz.size(), 1000u);
   EXPECT_EQ(est.frf.quantity, FrfQuantity::compliance);
   EXPECT_EQ(est.frf.unit, "m/N");
+  // sigma^2 pools the period-to-period covariance of every segment:
+  // sum (periods - settle - 1) complex degrees of freedom, twice as many
+  // real; the synchronous fit takes some mostly next to h x speed, so the
+  // median line keeps them all but a fraction (the figure is rounded down).
+  long dof = 0;
+  for (const auto& seg : run.excitation->segments) dof += seg.periods - seg.settle_periods - 1;
+  ASSERT_TRUE(est.frf.meta("sigma_dof"));
+  const long stated = std::stol(*est.frf.meta("sigma_dof"));
+  EXPECT_LE(stated, 2 * dof);
+  EXPECT_GE(stated, 2 * dof - 1);
   const NoiseStats s = compare(est.frf, model_frf(est.frf));
   report("run_ref_1", s);
   EXPECT_GT(s.mean, 0.8);

@@ -9,7 +9,11 @@
 //   T = sum_{entries, lines} 2 |H - m|^2 / (u + v)
 // is chi2 with 2 x (entries x lines) degrees of freedom on the healthy
 // machine; detected when T > chi2_quantile(1 - alpha, dof), so the
-// false-alarm rate is alpha. Per-entry tests (Bonferroni, alpha / entries)
+// false-alarm rate is alpha. When the measured file states the degrees of
+// freedom nu of its sigma^2 (metadata `sigma_dof`, docs/formats.md), each
+// term is 2 F(2, nu_eff) instead of chi2_2 (E = 2 nu / (nu - 2): an
+// estimated sigma makes T larger) and T is tested as the scaled chi2 g
+// chi2_h with its mean and variance (Satterthwaite); `dof` is then h. Per-entry tests (Bonferroni, alpha / entries)
 // and per-row / per-column shares of the excess give the symptoms and the
 // isolation of additive (one sensor row or actuator column) from
 // multiplicative (the plant) changes.

@@ -94,10 +94,16 @@ struct FrfEstimationOptions {
 };
 
 struct FrfEstimate {
-  FrfData frf;         // metadata: pump_id, run_id, speed_rpm, quantity, unit, method, averages, warning_N
+  FrfData frf;         // metadata: pump_id, run_id, speed_rpm, quantity, unit, method, averages, sigma_dof, warning_N
   std::string method;  // multisine, stepsine, gated, lpm, welch-ref, welch-h1, welch-hv
   std::vector<std::string> warnings;  // what a user should know: dropped lines, segments, no sigma
   long averages = 0;                  // periods (per experiment, mean), sweeps or Welch windows
+  // Real degrees of freedom of sigma^2 per line (metadata `sigma_dof`; 0:
+  // not known, e.g. overlapping Welch windows): 2 x the complex degrees of
+  // freedom of the noise covariance (multisine: periods - 1 pooled over the
+  // segments, less what the synchronous fit takes, median over the lines;
+  // LPM residuals; step-sine: the noise bins pooled at a line, fewest).
+  long sigma_dof = 0;
   long lines_dropped = 0;             // including lines without excitation in [f_min_hz, f_max_hz]
 };
 
