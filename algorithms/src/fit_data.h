@@ -50,6 +50,13 @@ class GramSolver {
   bool ok_ = false;
 };
 
+// Derivatives of the basis functions with respect to the poles, for the
+// Jacobian: a pair's model r/(s-p) + conj(r)/(s-conj p) with r = c1 + j c2
+// has d/dRe p = c1 u1 + c2 u2 and d/dIm p = c1 u2 - c2 u1, where u1 =
+// g + gc, u2 = j (g - gc), g = 1/(s-p)^2, gc = 1/(s-conj p)^2; a real pole
+// has d/dp = c1 g. Columns in the order of pole_basis (lines x columns).
+Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w);
+
 // Residue of pole k from the real coefficients of its basis columns.
 std::vector<cd> residues_from_coefficients(const std::vector<cd>& poles, const Eigen::VectorXd& c);
 

@@ -61,22 +61,8 @@ Normal normal_equations_separable(const FitData& data, const std::vector<cd>& po
   const int np = npp + (delay ? 1 : 0);
   const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
   const int nc = static_cast<int>(phi.cols());
-  Eigen::MatrixXcd u(L, npp);
+  const Eigen::MatrixXcd u = derivative_basis(poles, data.w);
   const cd j(0.0, 1.0);
-  for (int l = 0; l < L; ++l) {
-    const cd s(0.0, data.w(l));
-    int col = 0;
-    for (const cd& p : poles) {
-      const cd g = 1.0 / ((s - p) * (s - p));
-      if (p.imag() == 0.0) {
-        u(l, col++) = g;
-      } else {
-        const cd gc = 1.0 / ((s - std::conj(p)) * (s - std::conj(p)));
-        u(l, col++) = g + gc;
-        u(l, col++) = j * (g - gc);
-      }
-    }
-  }
   const Eigen::MatrixXd a0 = stack_lines(phi, wa), psi = stack_lines(u, wa), y0 = stack_lines(data.h, wa);
   const GramSolver gram(a0);
   const Eigen::MatrixXd c = gram.solve(a0.transpose() * y0);
@@ -148,18 +134,16 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
   out.linear.residues.resize(E, static_cast<Eigen::Index>(poles.size()));
   out.linear.direct.resize(E);
 
-  // 1/(s - p)^2 and 1/(s - conj p)^2 per line and pole.
-  Eigen::MatrixXcd g(L, static_cast<Eigen::Index>(poles.size())), gc(L, static_cast<Eigen::Index>(poles.size()));
-  for (int l = 0; l < L; ++l) {
-    const cd s(0.0, data.w(l));
-    for (size_t k = 0; k < poles.size(); ++k) {
-      g(l, static_cast<Eigen::Index>(k)) = 1.0 / ((s - poles[k]) * (s - poles[k]));
-      gc(l, static_cast<Eigen::Index>(k)) = 1.0 / ((s - std::conj(poles[k])) * (s - std::conj(poles[k])));
-    }
+  // Derivative basis (unweighted, stacked) and, for the delay, j w h.
+  const Eigen::MatrixXd psi = stack_lines(derivative_basis(poles, data.w), Eigen::VectorXd::Ones(L));
+  Eigen::MatrixXd jwh;
+  if (delay) {
+    Eigen::MatrixXcd m(L, E);
+    for (int l = 0; l < L; ++l) m.row(l) = cd(0.0, data.w(l)) * data.h.row(l);
+    jwh = stack_lines(m, Eigen::VectorXd::Ones(L));
   }
   Eigen::MatrixXd a, dmat(2 * L, np);
   Eigen::VectorXd y;
-  const cd j(0.0, 1.0);
   for (int e = 0; e < E; ++e) {
     stack_weighted(data, phi, e, a, y);
     const GramSolver gram(a);
@@ -170,33 +154,23 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
     for (size_t k = 0; k < r.size(); ++k) out.linear.residues(e, static_cast<Eigen::Index>(k)) = r[k];
     out.linear.direct(e) = c(nc - 1);
 
-    // Derivatives of the weighted model with respect to Re p and Im p.
-    for (int l = 0; l < L; ++l) {
-      const double wt = data.weight(l, e);
-      int col = 0;
-      for (size_t k = 0; k < poles.size(); ++k) {
-        const cd gk = g(l, static_cast<Eigen::Index>(k)), gck = gc(l, static_cast<Eigen::Index>(k));
-        if (poles[k].imag() == 0.0) {
-          const cd d = wt * r[k] * gk;
-          dmat(l, col) = d.real();
-          dmat(L + l, col) = d.imag();
-          ++col;
-        } else {
-          const cd da = wt * (r[k] * gk + std::conj(r[k]) * gck);
-          const cd db = wt * (j * r[k] * gk - j * std::conj(r[k]) * gck);
-          dmat(l, col) = da.real();
-          dmat(L + l, col) = da.imag();
-          dmat(l, col + 1) = db.real();
-          dmat(L + l, col + 1) = db.imag();
-          col += 2;
-        }
-      }
-      if (delay) {
-        const cd dy = wt * j * data.w(l) * data.h(l, e);
-        dmat(l, npp) = -dy.real();
-        dmat(L + l, npp) = -dy.imag();
+    // Derivatives of the weighted model with respect to Re p and Im p
+    // (see derivative_basis), column by column.
+    Eigen::VectorXd w2(2 * L);
+    w2 << data.weight.col(e), data.weight.col(e);
+    int col = 0;
+    for (size_t k = 0; k < poles.size(); ++k) {
+      const double c1 = r[k].real(), c2 = r[k].imag();
+      if (poles[k].imag() == 0.0) {
+        dmat.col(col) = c1 * w2.cwiseProduct(psi.col(col));
+        ++col;
+      } else {
+        dmat.col(col) = w2.cwiseProduct(c1 * psi.col(col) + c2 * psi.col(col + 1));
+        dmat.col(col + 1) = w2.cwiseProduct(c1 * psi.col(col + 1) - c2 * psi.col(col));
+        col += 2;
       }
     }
+    if (delay) dmat.col(npp) = -w2.cwiseProduct(jwh.col(e));
     // Kaufman: J = P_perp D, P_perp = I - A (A^T A)^-1 A^T, so
     // J^T J = D^T D - (A^T D)^T (A^T A)^-1 (A^T D).
     const Eigen::MatrixXd atd = a.transpose() * dmat;

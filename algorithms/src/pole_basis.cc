@@ -83,16 +83,29 @@ Eigen::MatrixXd GramSolver::solve(const Eigen::MatrixXd& b) const {
 }
 
 void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y) {
-  const int L = data.lines();
-  a.resize(2 * L, phi.cols());
-  y.resize(2 * L);
-  for (int l = 0; l < L; ++l) {
-    const double wt = data.weight(l, e);
-    a.row(l) = wt * phi.row(l).real();
-    a.row(L + l) = wt * phi.row(l).imag();
-    y(l) = wt * data.h(l, e).real();
-    y(L + l) = wt * data.h(l, e).imag();
+  // Column-wise (contiguous) rather than row by row into column-major storage.
+  a = stack_lines(phi, data.weight.col(e));
+  y = stack_lines(data.h.col(e), data.weight.col(e));
+}
+
+Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w) {
+  Eigen::MatrixXcd u(w.size(), basis_columns(poles));
+  const cd j(0.0, 1.0);
+  for (Eigen::Index l = 0; l < w.size(); ++l) {
+    const cd s(0.0, w(l));
+    int col = 0;
+    for (const cd& p : poles) {
+      const cd g = 1.0 / ((s - p) * (s - p));
+      if (p.imag() == 0.0) {
+        u(l, col++) = g;
+      } else {
+        const cd gc = 1.0 / ((s - std::conj(p)) * (s - std::conj(p)));
+        u(l, col++) = g + gc;
+        u(l, col++) = j * (g - gc);
+      }
+    }
   }
+  return u;
 }
 
 bool separable_weights(const FitData& data, Eigen::VectorXd& a, Eigen::VectorXd& b) {
