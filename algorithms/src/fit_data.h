@@ -50,6 +50,13 @@ class GramSolver {
   bool ok_ = false;
 };
 
+// Derivatives of the basis functions with respect to the poles, for the
+// Jacobian: a pair's model r/(s-p) + conj(r)/(s-conj p) with r = c1 + j c2
+// has d/dRe p = c1 u1 + c2 u2 and d/dIm p = c1 u2 - c2 u1, where u1 =
+// g + gc, u2 = j (g - gc), g = 1/(s-p)^2, gc = 1/(s-conj p)^2; a real pole
+// has d/dp = c1 g. Columns in the order of pole_basis (lines x columns).
+Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w);
+
 // Residue of pole k from the real coefficients of its basis columns.
 std::vector<cd> residues_from_coefficients(const std::vector<cd>& poles, const Eigen::VectorXd& c);
 
@@ -59,6 +66,16 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max);
 // Relaxed vector fitting with common poles; returns the relocated poles
 // (unstable ones flipped into the left half-plane).
 std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int iterations);
+
+// Weights that factor as weight(l, e) = a(l) b(e) (sigma of each entry a
+// fixed multiple of a common line profile: constant sigma per entry, or such
+// sigma scaled per line by the local residual). Then every entry's weighted
+// least-squares problem has the same basis up to the factor b(e), and one
+// Gram matrix of the pole basis serves all entries. Relative tolerance 1e-9.
+bool separable_weights(const FitData& data, Eigen::VectorXd& a, Eigen::VectorXd& b);
+
+// Real stacking [Re(diag(a) m); Im(diag(a) m)] of a lines x columns matrix.
+Eigen::MatrixXd stack_lines(const Eigen::MatrixXcd& m, const Eigen::VectorXd& a);
 
 struct LinearSolution {
   Eigen::MatrixXcd residues;  // entries x poles
@@ -86,6 +103,28 @@ struct MlSolution {
 // residues projected out; `delay_s` is the start (or fixed) delay.
 MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations, bool fit_delay = false,
                      double delay_s = 0.0);
+
+// Which output and input (indices) each fitted entry connects.
+struct ModalStructure {
+  int outputs = 0, inputs = 0;
+  std::vector<int> output_of, input_of;  // per entry
+};
+
+struct PairRefit {
+  cd poles[2];
+  double cost = 0.0;              // weighted cost with modal residues for the pair
+  Eigen::Matrix4d covariance;     // of [Re q1, Im q1, Re q2, Im q2], unscaled like MlSolution's
+  int iterations = 0;
+  bool ok = false;
+};
+// Maximum likelihood of poles k1, k2 with modal residues, r(o, i) =
+// psi(o) l(i) per pole (a single mode of any linear system), the other
+// poles fixed and their residues (free per entry) and the direct terms
+// projected out; Levenberg-Marquardt on the two poles and psi, l together,
+// started from the best rank-one approximation of `residues` (entries x
+// poles). Data undelayed.
+PairRefit refit_pair_rank_one(const FitData& data, const std::vector<cd>& poles, const Eigen::MatrixXcd& residues, size_t k1, size_t k2,
+                              const ModalStructure& modal, int max_iterations);
 
 // Score statistic of a delay at `delay_s`: 2 x the cost decrease that one
 // Gauss-Newton step in (poles, delay) predicts; chi^2 with 1 degree of

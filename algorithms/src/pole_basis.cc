@@ -61,7 +61,10 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
 
 GramSolver::GramSolver(const Eigen::MatrixXd& a) {
   scale_ = a.colwise().norm().transpose().cwiseMax(1e-300).cwiseInverse();
-  gram_ = scale_.asDiagonal() * (a.transpose() * a) * scale_.asDiagonal();
+  // A^T A as a symmetric rank update: half the flops of a general product.
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+  g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
+  gram_ = scale_.asDiagonal() * Eigen::MatrixXd(g.selfadjointView<Eigen::Lower>()) * scale_.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(gram_);
   ok_ = llt.info() == Eigen::Success;
   if (ok_) chol_ = llt.matrixL();
@@ -80,16 +83,48 @@ Eigen::MatrixXd GramSolver::solve(const Eigen::MatrixXd& b) const {
 }
 
 void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y) {
-  const int L = data.lines();
-  a.resize(2 * L, phi.cols());
-  y.resize(2 * L);
-  for (int l = 0; l < L; ++l) {
-    const double wt = data.weight(l, e);
-    a.row(l) = wt * phi.row(l).real();
-    a.row(L + l) = wt * phi.row(l).imag();
-    y(l) = wt * data.h(l, e).real();
-    y(L + l) = wt * data.h(l, e).imag();
+  // Column-wise (contiguous) rather than row by row into column-major storage.
+  a = stack_lines(phi, data.weight.col(e));
+  y = stack_lines(data.h.col(e), data.weight.col(e));
+}
+
+Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w) {
+  Eigen::MatrixXcd u(w.size(), basis_columns(poles));
+  const cd j(0.0, 1.0);
+  for (Eigen::Index l = 0; l < w.size(); ++l) {
+    const cd s(0.0, w(l));
+    int col = 0;
+    for (const cd& p : poles) {
+      const cd g = 1.0 / ((s - p) * (s - p));
+      if (p.imag() == 0.0) {
+        u(l, col++) = g;
+      } else {
+        const cd gc = 1.0 / ((s - std::conj(p)) * (s - std::conj(p)));
+        u(l, col++) = g + gc;
+        u(l, col++) = j * (g - gc);
+      }
+    }
   }
+  return u;
+}
+
+bool separable_weights(const FitData& data, Eigen::VectorXd& a, Eigen::VectorXd& b) {
+  const int L = data.lines(), E = data.entries();
+  if (L == 0 || E == 0 || !(data.weight(0, 0) > 0)) return false;
+  a = data.weight.col(0);
+  b = data.weight.row(0).transpose() / data.weight(0, 0);
+  for (int e = 0; e < E; ++e)
+    for (int l = 0; l < L; ++l)
+      if (!(std::abs(data.weight(l, e) - a(l) * b(e)) <= 1e-9 * data.weight(l, e))) return false;
+  return true;
+}
+
+Eigen::MatrixXd stack_lines(const Eigen::MatrixXcd& m, const Eigen::VectorXd& a) {
+  const Eigen::Index L = m.rows();
+  Eigen::MatrixXd out(2 * L, m.cols());
+  out.topRows(L) = a.asDiagonal() * m.real();
+  out.bottomRows(L) = a.asDiagonal() * m.imag();
+  return out;
 }
 
 LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles) {
@@ -98,6 +133,20 @@ LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles)
   LinearSolution out;
   out.residues.resize(data.entries(), static_cast<Eigen::Index>(poles.size()));
   out.direct.resize(data.entries());
+  Eigen::VectorXd wa, wb;
+  if (separable_weights(data, wa, wb)) {
+    // One Gram matrix for all entries: entry e's system is b(e) times the
+    // common one, so its coefficients are those of the common basis.
+    const Eigen::MatrixXd a0 = stack_lines(phi, wa), y0 = stack_lines(data.h, wa);
+    const Eigen::MatrixXd c = GramSolver(a0).solve(a0.transpose() * y0);
+    out.cost = ((a0 * c - y0) * wb.asDiagonal()).squaredNorm();
+    for (int e = 0; e < data.entries(); ++e) {
+      const auto r = residues_from_coefficients(poles, c.col(e));
+      for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];
+      out.direct(e) = c(n - 1, e);
+    }
+    return out;
+  }
   Eigen::MatrixXd a;
   Eigen::VectorXd b;
   for (int e = 0; e < data.entries(); ++e) {

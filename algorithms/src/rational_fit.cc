@@ -44,6 +44,10 @@ constexpr double kSplitRank = 0.3;
 constexpr int kMaxSplits = 3;
 constexpr double kMinSplitZ = 5.0;
 constexpr int kSplitTrialIterations = 10;
+// Close pairs refitted with modal residues: damping ratio below this, and
+// at most this many LM iterations.
+constexpr double kMaxPairZeta = 0.5;
+constexpr int kPairIterations = 40;
 
 int numerator_power(FrfQuantity q) {
   switch (q) {
@@ -354,25 +358,72 @@ double worst_window(const FitData& d, const detail::MlSolution& ml, double scale
   return best_w;
 }
 
+// Which output and input each fitted entry connects.
+detail::ModalStructure modal_structure(const FrfData& frf, const std::vector<int>& entries) {
+  std::map<std::string, int> outs, ins;
+  detail::ModalStructure m;
+  for (int e : entries) {
+    const FrfEntry& en = frf.entries[static_cast<size_t>(e)];
+    m.output_of.push_back(outs.emplace(en.output, static_cast<int>(outs.size())).first->second);
+    m.input_of.push_back(ins.emplace(en.input, static_cast<int>(ins.size())).first->second);
+  }
+  m.outputs = static_cast<int>(outs.size());
+  m.inputs = static_cast<int>(ins.size());
+  return m;
+}
+
 // Second over first singular value of each pole's residue matrix, the
 // entries placed at their (output, input); entries without signal are 0.
-std::vector<double> residue_rank_ratio(const FrfData& frf, const std::vector<int>& entries, const Eigen::MatrixXcd& residues) {
-  std::map<std::string, int> outs, ins;
-  for (int e : entries) {
-    outs.emplace(frf.entries[static_cast<size_t>(e)].output, static_cast<int>(outs.size()));
-    ins.emplace(frf.entries[static_cast<size_t>(e)].input, static_cast<int>(ins.size()));
-  }
+std::vector<double> residue_rank_ratio(const detail::ModalStructure& modal, const Eigen::MatrixXcd& residues) {
   std::vector<double> ratio;
   for (Eigen::Index k = 0; k < residues.cols(); ++k) {
-    Eigen::MatrixXcd r = Eigen::MatrixXcd::Zero(static_cast<Eigen::Index>(outs.size()), static_cast<Eigen::Index>(ins.size()));
-    for (size_t i = 0; i < entries.size(); ++i) {
-      const FrfEntry& en = frf.entries[static_cast<size_t>(entries[i])];
-      r(outs[en.output], ins[en.input]) = residues(static_cast<Eigen::Index>(i), k);
-    }
+    Eigen::MatrixXcd r = Eigen::MatrixXcd::Zero(modal.outputs, modal.inputs);
+    for (size_t i = 0; i < modal.output_of.size(); ++i) r(modal.output_of[i], modal.input_of[i]) = residues(static_cast<Eigen::Index>(i), k);
     const Eigen::VectorXd s = Eigen::JacobiSVD<Eigen::MatrixXcd>(r).singularValues();
     ratio.push_back(s.size() > 1 && s(0) > 0 ? s(1) / s(0) : 0.0);
   }
   return ratio;
+}
+
+// Close pairs with modal residues. With free residues per entry, two poles
+// whose half-power bands overlap (a heavily damped whirl pair a few percent
+// apart) are poorly determined along their separation: each entry can trade
+// one pole's residue for the other's. A single mode's residue matrix is
+// rank one, psi l^T, which ties the entries together (per pole 2 (outputs +
+// inputs - 1) real parameters instead of 2 entries). Each such pair is
+// refitted with modal residues (the other poles fixed) and the constrained
+// poles are kept when the likelihood ratio does not reject the constraint:
+// chi^2 rises by less than the removed parameters plus kMinSplitZ standard
+// deviations. A repeated root (x/y housing modes: rank two) is rejected.
+void refit_close_pairs(const FrfData& frf, const std::vector<int>& entries, const FitData& undelayed_data, double noise_scale2,
+                       detail::MlSolution& ml) {
+  const detail::ModalStructure modal = modal_structure(frf, entries);
+  const int removed = 2 * (2 * undelayed_data.entries() - 2 * (modal.outputs + modal.inputs - 1));
+  if (removed <= 0) return;
+  const double allowed = removed + kMinSplitZ * std::sqrt(2.0 * removed);
+  const double w_min = undelayed_data.w.minCoeff(), w_max = undelayed_data.w.maxCoeff();
+  std::vector<size_t> order;
+  for (size_t k = 0; k < ml.poles.size(); ++k) {
+    const cd p = ml.poles[k];
+    if (p.imag() > 0.0 && p.imag() >= 0.9 * w_min && p.imag() <= 1.05 * w_max && -p.real() < kMaxPairZeta * std::abs(p)) order.push_back(k);
+  }
+  std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return ml.poles[x].imag() < ml.poles[y].imag(); });
+  std::vector<int> col(ml.poles.size(), 0);
+  for (size_t k = 1; k < ml.poles.size(); ++k) col[k] = col[k - 1] + (ml.poles[k - 1].imag() == 0.0 ? 1 : 2);
+  for (size_t n = 0; n + 1 < order.size(); ++n) {
+    const size_t k1 = order[n], k2 = order[n + 1];
+    const cd p1 = ml.poles[k1], p2 = ml.poles[k2];
+    if (!(p2.imag() - p1.imag() < -p1.real() - p2.real())) continue;
+    const detail::PairRefit r = detail::refit_pair_rank_one(undelayed_data, ml.poles, ml.linear.residues, k1, k2, modal, kPairIterations);
+    const double rise = 2.0 * (r.cost - ml.linear.cost) / noise_scale2;
+    if (!r.ok || !(rise < allowed)) continue;
+    ml.poles[k1] = r.poles[0];
+    ml.poles[k2] = r.poles[1];
+    ml.linear = detail::solve_residues(undelayed_data, ml.poles);
+    ml.pole_covariance.block(col[k1], col[k1], 2, 2) = r.covariance.topLeftCorner(2, 2);
+    ml.pole_covariance.block(col[k2], col[k2], 2, 2) = r.covariance.bottomRightCorner(2, 2);
+    ++n;  // each pole in one pair
+  }
 }
 
 }  // namespace
@@ -509,7 +560,7 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
     // likelihood ratio (chi^2, in noise units) exceeds the added parameters
     // by kMinSplitZ standard deviations (chi^2 with p dof: p + z sqrt(2p)).
     // A SISO fit has rank-one residues and never splits.
-    const std::vector<double> ratio = residue_rank_ratio(frf, prep.entries, ml.linear.residues);
+    const std::vector<double> ratio = residue_rank_ratio(modal_structure(frf, prep.entries), ml.linear.residues);
     std::vector<size_t> order;
     for (size_t k = 0; k < ml.poles.size(); ++k) {
       const cd p = ml.poles[k];
@@ -539,6 +590,7 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
       ++out.selected_modes;
     }
   }
+  if (opt.modes == 0 && ml_iterations > 0) refit_close_pairs(frf, prep.entries, detail::undelayed(data, ml.delay_s), std::max(1.0, chi2(ml)), ml);
   out.model.poles = ml.poles;
   out.model.residues = ml.linear.residues;
   out.model.direct = ml.linear.direct;
