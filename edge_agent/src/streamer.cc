@@ -30,7 +30,9 @@ class RunStream {
                          run_to_json(src.run()).dump(),
                          static_cast<uint32_t>(src.run().channels.size()),
                          src.run().sample_rate_hz,
-                         src.frames_per_block()};
+                         src.frames_per_block(),
+                         opt.checksum_kind};
+    checksum_ = run_checksum_init(hdr_.checksum_kind);
     spool_.write_header(hdr_);
   }
 
@@ -198,9 +200,9 @@ class RunStream {
         break;
       }
       // The block's checksum and the run's, in one pass over the payload.
-      uint64_t block_sum = kFnv1a64Init, run_sum = checksum_;
-      fnv1a64_pair(pending_->payload.data(), pending_->payload.size(), block_sum, run_sum);
-      pending_->checksum = block_sum;
+      const BlockChecksums sums =
+          block_checksums(hdr_.checksum_kind, pending_->payload.data(), pending_->payload.size(), checksum_);
+      pending_->checksum = sums.block;
       if (!spool_.put(*pending_)) {
         if (!spool_full_)
           std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
@@ -211,7 +213,7 @@ class RunStream {
       }
       if (spool_full_) std::fprintf(stderr, "ambdiag-agent: spool has room again: source resumed\n");
       spool_full_ = false;
-      checksum_ = run_sum;
+      checksum_ = sums.run_after;
       acked_.push_back(0);
       ++produced_;
       pending_.reset();
@@ -254,6 +256,7 @@ class RunStream {
       s.n_frames = b.n_frames;
       s.checksum = b.checksum;
       s.payload = stream::borrow_octets(b.payload.data(), b.payload.size());
+      s.checksum_kind = static_cast<uint32_t>(hdr_.checksum_kind);
       if (!ep_.block.write(s)) break;  // pushed back: try again next round
       if (send_cursor_ == first_unacked_ || result_.blocks_sent == 0) last_ack_progress_ = Clock::now();
       ++send_cursor_;
@@ -270,6 +273,7 @@ class RunStream {
     e.total_frames = src_ ? src_->frames_produced() : total_frames_;
     e.n_blocks = produced_;
     e.checksum = checksum_;
+    e.checksum_kind = static_cast<uint32_t>(hdr_.checksum_kind);
     e.aborted = aborted;
     e.reason = const_cast<char*>(reason.c_str());
     ep_.end.write(e);

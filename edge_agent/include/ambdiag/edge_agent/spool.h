@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "ambdiag/core/checksum.h"
 #include "ambdiag/edge_agent/block.h"
 
 namespace ambdiag::agent {
@@ -39,13 +40,16 @@ struct SpooledHeader {
   uint32_t n_channels = 0;
   double sample_rate_hz = 0.0;
   uint32_t frames_per_block = 0;
+  // How the blocks' and the run's checksums are computed (core/checksum.h);
+  // header.json without it (spools of earlier agents): FNV-1a 64.
+  ChecksumKind checksum_kind = ChecksumKind::xxh64;
 };
 
 // What the run end carries (end.json), written when the source is done.
 struct SpooledEnd {
   int64_t n_blocks = 0;
   int64_t total_frames = 0;
-  uint64_t checksum = 0;  // FNV-1a 64 of the whole run
+  uint64_t checksum = 0;  // of the whole run, of the header's checksum_kind
 };
 
 class Spool {
@@ -68,6 +72,8 @@ class Spool {
   void write_header(const SpooledHeader& h);
   void write_end(const SpooledEnd& e);
   const std::optional<SpooledHeader>& header() const { return header_; }
+  // The checksum kind of the blocks held (the header's; the default before one is written).
+  ChecksumKind checksum_kind() const { return header_ ? header_->checksum_kind : SpooledHeader{}.checksum_kind; }
   const std::optional<SpooledEnd>& end() const { return end_; }
 
   // Stores the block; false (nothing stored) if it does not fit.
