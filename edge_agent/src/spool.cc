@@ -154,6 +154,25 @@ bool Spool::has_room(size_t payload_bytes) const {
 bool Spool::put(const Block& b) {
   if (contains(b.seq)) return true;
   if (!has_room(b.payload.size())) return false;
+  append(b);
+  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, b);
+  return true;
+}
+
+bool Spool::put(Block&& b) {
+  if (contains(b.seq)) return true;
+  if (!has_room(b.payload.size())) return false;
+  append(b);
+  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, std::move(b));
+  return true;
+}
+
+const Block* Spool::peek(int64_t seq) const {
+  const auto it = memory_.find(seq);
+  return it == memory_.end() ? nullptr : &it->second;
+}
+
+void Spool::append(const Block& b) {
   if (current_ < 0 || segments_[current_].bytes >= segment_limit_)
     open_segment(next_segment_++);
   char head[kRecordHeader];
@@ -175,9 +194,7 @@ bool Spool::put(const Block& b) {
   seg.bytes += kRecordHeader + b.payload.size();
   ++seg.live;
   disk_bytes_ += kRecordHeader + b.payload.size();
-  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, b);
   if (Clock::now() - last_sync_ >= kSyncInterval) sync();
-  return true;
 }
 
 Block Spool::get(int64_t seq) const {

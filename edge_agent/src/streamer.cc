@@ -203,7 +203,7 @@ class RunStream {
       const BlockChecksums sums =
           block_checksums(hdr_.checksum_kind, pending_->payload.data(), pending_->payload.size(), checksum_);
       pending_->checksum = sums.block;
-      if (!spool_.put(*pending_)) {
+      if (!spool_.put(std::move(*pending_))) {  // moves only if stored
         if (!spool_full_)
           std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
                        static_cast<unsigned long long>(spool_.disk_bytes()),
@@ -247,7 +247,11 @@ class RunStream {
         ++send_cursor_;
         continue;
       }
-      const Block b = spool_.get(send_cursor_);
+      // From the memory cache without a copy; from disk otherwise.
+      std::optional<Block> from_disk;
+      const Block* held = spool_.peek(send_cursor_);
+      if (!held) held = &from_disk.emplace(spool_.get(send_cursor_));
+      const Block& b = *held;
       ambdiag_stream_SampleBlock s{};
       s.protocol_version = stream::kProtocolVersion;
       s.run_id = const_cast<char*>(hdr_.run_id.c_str());

@@ -38,6 +38,13 @@ TEST(Spool, WritesEveryBlockToDiskKeepsTheFirstInMemoryAndReadsThemBack) {
   Spool spool(dir, "P-1/run a", 1 << 20, 2);
   for (int64_t s = 0; s < 5; ++s) ASSERT_TRUE(spool.put(make_block(s, 1000)));
   EXPECT_EQ(spool.memory_blocks(), 2u);
+  ASSERT_NE(spool.peek(1), nullptr);  // in memory: no copy
+  EXPECT_EQ(spool.peek(1)->payload, make_block(1, 1000).payload);
+  EXPECT_EQ(spool.peek(2), nullptr);  // on disk only
+  Block moved = make_block(5, 1000);
+  ASSERT_TRUE(spool.put(std::move(moved)));
+  EXPECT_EQ(spool.get(5).payload, make_block(5, 1000).payload);
+  spool.erase(5);
   EXPECT_EQ(files_in(dir), 1u);  // one segment
   EXPECT_GT(spool.disk_bytes(), 5000u);
   for (int64_t s = 0; s < 5; ++s) {

@@ -76,12 +76,17 @@ class Spool {
   ChecksumKind checksum_kind() const { return header_ ? header_->checksum_kind : SpooledHeader{}.checksum_kind; }
   const std::optional<SpooledEnd>& end() const { return end_; }
 
-  // Stores the block; false (nothing stored) if it does not fit.
+  // Stores the block; false (nothing stored, `b` untouched) if it does not
+  // fit. The rvalue form moves the payload into the memory cache.
   bool put(const Block& b);
+  bool put(Block&& b);
   // Would a block of this payload size be accepted now?
   bool has_room(size_t payload_bytes) const;
   // The stored block; throws std::runtime_error if its record is damaged.
   Block get(int64_t seq) const;
+  // The block if it is in the memory cache (no copy, no disk read), else null;
+  // valid until the next put/erase.
+  const Block* peek(int64_t seq) const;
   bool contains(int64_t seq) const { return index_.count(seq) > 0; }
   void erase(int64_t seq);
   // Sequence numbers held, ascending.
@@ -108,6 +113,7 @@ class Spool {
     int64_t live = 0;  // blocks not yet acknowledged
   };
   Spool(std::filesystem::path run_dir, uint64_t limit_bytes, size_t memory_blocks);
+  void append(const Block& b);  // the record to the open segment, indexed
   std::filesystem::path segment_path(int64_t segment) const;
   void open_segment(int64_t segment);
   void close_segment();
