@@ -81,9 +81,10 @@ TEST_F(StreamTest, AgentsOfEitherChecksumKindAreVerifiedSampleForSample) {
   auto server = start_server();
   const fs::path fnv_cfg = write_scratch("fnv.json", R"({"dds": {"checksum": "fnv1a64"}})");
   const fs::path a = short_run(0.5, "KIND/xxh64"), b = short_run(0.5, "KIND/fnv1a64");
+  // One after the other: they share the fixture's spool folder (one agent per folder).
   auto agent_a = start_agent(a, {"--fast", "--timeout", "30"});
-  auto agent_b = start_agent(b, {"--fast", "--timeout", "30", "--config", fnv_cfg.string()});
   EXPECT_EQ(agent_a->wait(60s), 0) << agent_a->log() << "\n--- server ---\n" << server->log();
+  auto agent_b = start_agent(b, {"--fast", "--timeout", "30", "--config", fnv_cfg.string()});
   EXPECT_EQ(agent_b->wait(60s), 0) << agent_b->log() << "\n--- server ---\n" << server->log();
   for (const auto& [run_id, run_dir] : {std::pair{"KIND/xxh64", a}, std::pair{"KIND/fnv1a64", b}}) {
     const auto info = find_run(run_id);
