@@ -117,7 +117,36 @@ double process_cpu_s(pid_t pid) {
   return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
 }
 
+// UDP datagrams the kernel dropped for want of socket receive buffer, all
+// sockets of this network namespace (/proc/net/snmp, Udp RcvbufErrors): a
+// reliable DDS reader recovers them by retransmission, which costs time.
+long long udp_rcvbuf_errors() {
+  std::ifstream f("/proc/net/snmp");
+  std::string names, values, line;
+  while (std::getline(f, line))
+    if (line.rfind("Udp: ", 0) == 0) names.empty() ? names = line : values = line;
+  std::istringstream n(names), v(values);
+  std::string name, value;
+  while (n >> name && v >> value)
+    if (name == "RcvbufErrors") return std::stoll(value);
+  return -1;
+}
+
+// CPU-seconds the whole machine spent busy (every process, every core) so
+// far (/proc/stat, first line: all but idle and iowait). The machine is
+// shared: busy minus our processes' CPU is what the others took meanwhile.
+double machine_busy_s() {
+  std::ifstream f("/proc/stat");
+  std::string cpu;
+  double v[8] = {};
+  f >> cpu;
+  for (double& x : v) f >> x;
+  return (v[0] + v[1] + v[2] + v[5] + v[6] + v[7]) / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
 struct E2e {
+  double machine_busy_s = 0, machine_s = 0;  // all cores, during the case; cores x wall
+  long long udp_drops = 0;
   double mb_per_s = 0, wall_s = 0, cpu_s = 0, server_rss_mb = 0, server_cpu_s = 0;
   double span_s = 0, span_mb_per_s = 0;  // first block received -> last commit (server's figure)
   std::string queue_peak;                 // "N bytes", from the server's last line
@@ -140,6 +169,8 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
   auto server = e.server(server_extra);
   std::this_thread::sleep_for(1s);  // server up and discovered
   const double cpu0 = ambdiag::bench::cpu_seconds(RUSAGE_CHILDREN);
+  const long long drops0 = udp_rcvbuf_errors();
+  const double busy0 = machine_busy_s();
   const auto t0 = Clock::now();
   std::vector<std::unique_ptr<Process>> agents;
   for (const auto& r : runs) agents.push_back(e.agent(r, fast));
@@ -154,6 +185,9 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
     }
   }
   out.wall_s = secs(Clock::now() - t0);
+  out.udp_drops = udp_rcvbuf_errors() - drops0;
+  out.machine_busy_s = machine_busy_s() - busy0;
+  out.machine_s = out.wall_s * static_cast<double>(sysconf(_SC_NPROCESSORS_ONLN));
   out.server_rss_mb = std::max(rss, peak_rss_mb(server->pid()));
   out.server_cpu_s = process_cpu_s(server->pid());
   server->signal(SIGTERM);
@@ -272,9 +306,11 @@ int main(int argc, char** argv) {
     fast = end_to_end(e, run_dirs, bytes, true);
     std::printf("rep %d: end to end (%d agents --fast -> serve -> committed, verified): %.1f MB/s from the first "
                 "block received to the last commit (%.2f s); %.1f MB/s from the agents' start (%.2f s wall); "
-                "CPU %.2f s (user+sys, all processes; server %.2f s); server peak RSS %.0f MB; failed %d\n",
+                "CPU %.2f s (user+sys, all processes; server %.2f s); server peak RSS %.0f MB; UDP datagrams dropped by "
+                "the kernel %lld; machine busy %.2f of %.2f CPU-s (others %.2f); failed %d\n",
                 rep, agents, fast.span_mb_per_s, fast.span_s, fast.mb_per_s, fast.wall_s, fast.cpu_s,
-                fast.server_cpu_s, fast.server_rss_mb, fast.failed);
+                fast.server_cpu_s, fast.server_rss_mb, fast.udp_drops, fast.machine_busy_s, fast.machine_s,
+                std::max(0.0, fast.machine_busy_s - fast.cpu_s), fast.failed);
     double st_cpu = 0;
     const double st = storage_ceiling(e.dir, runs, &st_cpu);
     std::printf("rep %d: ceiling Historian::put_chunks, 256 chunks per transaction: %.1f MB/s (%.2f s wall, CPU %.2f s)"

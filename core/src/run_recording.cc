@@ -329,6 +329,13 @@ std::vector<float> read_samples(const std::string& path, size_t channel_count) {
 
 // Names the first non-finite sample, or returns normally.
 void check_samples_finite(const RunRecording& run, const std::string& what) {
+  // First a branch-free pass the compiler vectorises (a float is NaN or
+  // infinite when its exponent bits are all ones); it was 9 % of an agent's
+  // CPU as a loop of std::isfinite with an early exit. Then, only if some
+  // sample is bad, find it for the message.
+  uint32_t bad = 0;
+  for (const float f : run.samples) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(f) & 0x7f800000u) == 0x7f800000u);
+  if (bad == 0) return;
   const size_t nch = run.channels.size();
   for (size_t i = 0; i < run.samples.size(); ++i) {
     if (!std::isfinite(run.samples[i])) {

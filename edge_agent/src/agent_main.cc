@@ -147,10 +147,10 @@ bool stream_one(stream::AgentEndpoints& ep, RunRecording run, const agent::Agent
   agent::Spool spool(cfg.spool_dir, run_id, cfg.spool_limit_bytes, cfg.memory_blocks);
   const agent::StreamResult r = agent::stream_run(ep, src, spool, pump, opt);
   std::fprintf(stderr,
-               "ambdiag-agent: run %s: %s: %s (%lld blocks, %lld frames, checksum %016llx, %lld sent, %lld resends, "
+               "ambdiag-agent: run %s: %s: %s (%lld blocks, %lld frames, checksum %s %016llx, %lld sent, %lld resends, "
                "spool peak %llu bytes)\n",
                run_id.c_str(), r.complete ? "committed" : "NOT committed", r.message.c_str(),
-               static_cast<long long>(r.n_blocks), static_cast<long long>(r.total_frames),
+               static_cast<long long>(r.n_blocks), static_cast<long long>(r.total_frames), to_string(opt.checksum_kind),
                static_cast<unsigned long long>(r.checksum), static_cast<long long>(r.blocks_sent),
                static_cast<long long>(r.resends), static_cast<unsigned long long>(r.max_spool_disk_bytes));
   return r.complete;
@@ -192,6 +192,7 @@ int run(const Cli& c) {
   const agent::AgentConfig cfg = config_from(c);
   agent::StreamOptions opt;
   opt.paced = !c.flags.count("--fast");
+  opt.checksum_kind = *checksum_kind_from(cfg.checksum);  // checked when the config was read
   if (c.has("--timeout")) opt.timeout = std::chrono::seconds(integer_option(c, "--timeout", 1, 86400));
   opt.stop_requested = [] { return g_stop.load(); };
 

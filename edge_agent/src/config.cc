@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/io_util.h"
 
@@ -118,13 +119,17 @@ AgentConfig load_agent_config(const std::string& path) {
   }
   if (doc.contains("dds")) {
     const json& d = doc["dds"];
-    r.only(d, "dds", {"domain", "partition"});
+    r.only(d, "dds", {"domain", "partition", "checksum"});
     if (d.contains("domain")) {
       const int64_t v = r.integer(d["domain"], "dds.domain");
       if (v < 0 || v > 232) r.fail("dds.domain", "must be in 0..232");
       c.domain = static_cast<int>(v);
     }
     if (d.contains("partition")) c.partition = r.str(d["partition"], "dds.partition");
+    if (d.contains("checksum")) {
+      c.checksum = r.str(d["checksum"], "dds.checksum");
+      if (!checksum_kind_from(c.checksum)) r.fail("dds.checksum", "must be \"xxh64\" or \"fnv1a64\"");
+    }
   }
   if (doc.contains("spool")) {
     const json& s = doc["spool"];

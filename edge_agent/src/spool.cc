@@ -134,7 +134,7 @@ void Spool::write_header(const SpooledHeader& h) {
   const nlohmann::json j = {{"format", "ambdiag-spool-1"},    {"run_id", h.run_id},
                             {"pump_id", h.pump_id},           {"header_json", h.header_json},
                             {"n_channels", h.n_channels},     {"sample_rate_hz", h.sample_rate_hz},
-                            {"frames_per_block", h.frames_per_block}};
+                            {"frames_per_block", h.frames_per_block}, {"checksum_kind", to_string(h.checksum_kind)}};
   write_file_atomic((run_dir_ / "header.json").string(), j.dump());
   header_ = h;
 }
@@ -154,6 +154,25 @@ bool Spool::has_room(size_t payload_bytes) const {
 bool Spool::put(const Block& b) {
   if (contains(b.seq)) return true;
   if (!has_room(b.payload.size())) return false;
+  append(b);
+  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, b);
+  return true;
+}
+
+bool Spool::put(Block&& b) {
+  if (contains(b.seq)) return true;
+  if (!has_room(b.payload.size())) return false;
+  append(b);
+  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, std::move(b));
+  return true;
+}
+
+const Block* Spool::peek(int64_t seq) const {
+  const auto it = memory_.find(seq);
+  return it == memory_.end() ? nullptr : &it->second;
+}
+
+void Spool::append(const Block& b) {
   if (current_ < 0 || segments_[current_].bytes >= segment_limit_)
     open_segment(next_segment_++);
   char head[kRecordHeader];
@@ -175,9 +194,7 @@ bool Spool::put(const Block& b) {
   seg.bytes += kRecordHeader + b.payload.size();
   ++seg.live;
   disk_bytes_ += kRecordHeader + b.payload.size();
-  if (memory_.size() < memory_limit_) memory_.emplace(b.seq, b);
   if (Clock::now() - last_sync_ >= kSyncInterval) sync();
-  return true;
 }
 
 Block Spool::get(int64_t seq) const {
@@ -199,7 +216,7 @@ Block Spool::get(int64_t seq) const {
   pos += 4;
   b.checksum = get_le<uint64_t>(bytes.data(), pos);
   b.payload = bytes.substr(kRecordHeader);
-  if (b.seq != seq || fnv1a64(b.payload.data(), b.payload.size()) != b.checksum)
+  if (b.seq != seq || block_checksum(checksum_kind(), b.payload.data(), b.payload.size()) != b.checksum)
     throw std::runtime_error(path.string() + ": damaged spool record (block " + std::to_string(seq) + ", checksum)");
   return b;
 }
@@ -252,7 +269,13 @@ std::unique_ptr<Spool> Spool::recover(const fs::path& run_dir, uint64_t limit_by
     const auto j = nlohmann::json::parse(read_file_bytes(hp.string()));
     if (j.at("format") != "ambdiag-spool-1") throw InputError("unknown format " + j.at("format").dump());
     s->header_ = SpooledHeader{j.at("run_id"),         j.at("pump_id"),        j.at("header_json"),
-                               j.at("n_channels"),     j.at("sample_rate_hz"), j.at("frames_per_block")};
+                               j.at("n_channels"),     j.at("sample_rate_hz"), j.at("frames_per_block"),
+                               ChecksumKind::fnv1a64};
+    if (j.contains("checksum_kind")) {
+      const auto kind = checksum_kind_from(j.at("checksum_kind").get<std::string>());
+      if (!kind) throw InputError("unknown checksum_kind " + j.at("checksum_kind").dump());
+      s->header_->checksum_kind = *kind;
+    }
     if (fs::exists(run_dir / "end.json")) {
       const auto e = nlohmann::json::parse(read_file_bytes((run_dir / "end.json").string()));
       s->end_ = SpooledEnd{e.at("n_blocks"), e.at("total_frames"),
@@ -308,7 +331,8 @@ std::unique_ptr<Spool> Spool::recover(const fs::path& run_dir, uint64_t limit_by
       b.n_frames = get_le<uint32_t>(h, p);
       p += 4;
       b.checksum = get_le<uint64_t>(h, p);
-      if (fnv1a64(h + kRecordHeader, len) != b.checksum || b.seq < 0 || s->index_.count(b.seq)) {
+      if (block_checksum(s->checksum_kind(), h + kRecordHeader, len) != b.checksum || b.seq < 0 ||
+          s->index_.count(b.seq)) {
         problems.push_back(where + ": block " + std::to_string(b.seq) + " damaged (checksum) or repeated: dropped");
       } else {
         s->index_[b.seq] = Where{segment, pos, len};

@@ -30,7 +30,9 @@ class RunStream {
                          run_to_json(src.run()).dump(),
                          static_cast<uint32_t>(src.run().channels.size()),
                          src.run().sample_rate_hz,
-                         src.frames_per_block()};
+                         src.frames_per_block(),
+                         opt.checksum_kind};
+    checksum_ = run_checksum_init(hdr_.checksum_kind);
     spool_.write_header(hdr_);
   }
 
@@ -198,10 +200,10 @@ class RunStream {
         break;
       }
       // The block's checksum and the run's, in one pass over the payload.
-      uint64_t block_sum = kFnv1a64Init, run_sum = checksum_;
-      fnv1a64_pair(pending_->payload.data(), pending_->payload.size(), block_sum, run_sum);
-      pending_->checksum = block_sum;
-      if (!spool_.put(*pending_)) {
+      const BlockChecksums sums =
+          block_checksums(hdr_.checksum_kind, pending_->payload.data(), pending_->payload.size(), checksum_);
+      pending_->checksum = sums.block;
+      if (!spool_.put(std::move(*pending_))) {  // moves only if stored
         if (!spool_full_)
           std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
                        static_cast<unsigned long long>(spool_.disk_bytes()),
@@ -211,7 +213,7 @@ class RunStream {
       }
       if (spool_full_) std::fprintf(stderr, "ambdiag-agent: spool has room again: source resumed\n");
       spool_full_ = false;
-      checksum_ = run_sum;
+      checksum_ = sums.run_after;
       acked_.push_back(0);
       ++produced_;
       pending_.reset();
@@ -245,7 +247,11 @@ class RunStream {
         ++send_cursor_;
         continue;
       }
-      const Block b = spool_.get(send_cursor_);
+      // From the memory cache without a copy; from disk otherwise.
+      std::optional<Block> from_disk;
+      const Block* held = spool_.peek(send_cursor_);
+      if (!held) held = &from_disk.emplace(spool_.get(send_cursor_));
+      const Block& b = *held;
       ambdiag_stream_SampleBlock s{};
       s.protocol_version = stream::kProtocolVersion;
       s.run_id = const_cast<char*>(hdr_.run_id.c_str());
@@ -254,6 +260,7 @@ class RunStream {
       s.n_frames = b.n_frames;
       s.checksum = b.checksum;
       s.payload = stream::borrow_octets(b.payload.data(), b.payload.size());
+      s.checksum_kind = static_cast<uint32_t>(hdr_.checksum_kind);
       if (!ep_.block.write(s)) break;  // pushed back: try again next round
       if (send_cursor_ == first_unacked_ || result_.blocks_sent == 0) last_ack_progress_ = Clock::now();
       ++send_cursor_;
@@ -270,6 +277,7 @@ class RunStream {
     e.total_frames = src_ ? src_->frames_produced() : total_frames_;
     e.n_blocks = produced_;
     e.checksum = checksum_;
+    e.checksum_kind = static_cast<uint32_t>(hdr_.checksum_kind);
     e.aborted = aborted;
     e.reason = const_cast<char*>(reason.c_str());
     ep_.end.write(e);

@@ -75,10 +75,11 @@ struct ActiveRun {
   std::string pump_id;
   uint32_t n_channels = 0;
   Clock::time_point last_seen;
-  // The run's FNV-1a 64 over blocks 0..chain_seq-1 as received (see
-  // detail::ValidBlock::chained).
+  // The run's checksum (of chain_kind, set by block 0) over blocks
+  // 0..chain_seq-1 as received (see detail::ValidBlock::chained).
   int64_t chain_seq = 0;
   uint64_t chain_hash = kFnv1a64Init;
+  ChecksumKind chain_kind = ChecksumKind::fnv1a64;
 };
 
 // Finite unless some float has an all-ones exponent (NaN, infinity); no
@@ -235,14 +236,22 @@ struct Ingest::Impl {
       return std::nullopt;
     }
     // The block's own checksum and, when it extends the run's chain, the
-    // run's running one, in one pass.
-    const bool extends = b.seq == run->chain_seq;
-    uint64_t block_hash = kFnv1a64Init, run_hash = run->chain_hash;
+    // run's running one, in one pass. A 1.0 agent sends no checksum_kind:
+    // 0, FNV-1a 64.
+    const auto kind = checksum_kind_from(b.checksum_kind);
+    if (!kind) {
+      reject("checksum", run_id, "block " + std::to_string(b.seq) + ": unknown checksum kind " +
+                                     std::to_string(b.checksum_kind));
+      return std::nullopt;
+    }
+    const bool extends = b.seq == run->chain_seq && (b.seq == 0 || *kind == run->chain_kind);
+    const uint64_t run_before = b.seq == 0 ? run_checksum_init(*kind) : run->chain_hash;
+    BlockChecksums sums;
     if (extends)
-      fnv1a64_pair(b.payload._buffer, n_bytes, block_hash, run_hash);
+      sums = block_checksums(*kind, b.payload._buffer, n_bytes, run_before);
     else
-      block_hash = fnv1a64(b.payload._buffer, n_bytes);
-    if (block_hash != b.checksum) {
+      sums.block = block_checksum(*kind, b.payload._buffer, n_bytes);
+    if (sums.block != b.checksum) {
       reject("checksum", run_id, "block " + std::to_string(b.seq) + ": checksum mismatch");
       return std::nullopt;
     }
@@ -251,10 +260,9 @@ struct Ingest::Impl {
       return std::nullopt;
     }
     run->last_seen = Clock::now();
-    detail::ValidBlock v{b.seq, b.first_frame, b.n_frames,
-                         std::vector<uint8_t>(b.payload._buffer, b.payload._buffer + n_bytes), extends,
-                         run->chain_hash, run_hash};
-    if (extends) run->chain_seq = b.seq + 1, run->chain_hash = run_hash;
+    detail::ValidBlock v{b.seq,   b.first_frame, b.n_frames, std::vector<uint8_t>(b.payload._buffer, b.payload._buffer + n_bytes),
+                         extends, run_before,    sums.run_after, *kind};
+    if (extends) run->chain_seq = b.seq + 1, run->chain_hash = sums.run_after, run->chain_kind = *kind;
     return v;
   }
 
@@ -279,8 +287,13 @@ struct Ingest::Impl {
         reject("version", run_id, "run end protocol " + stream::version_string(e.protocol_version));
         return;
       }
+      const auto kind = checksum_kind_from(e.checksum_kind);
+      if (!kind) {
+        reject("run_end", run_id, "unknown checksum kind " + std::to_string(e.checksum_kind));
+        return;
+      }
       active.erase(run_id);
-      push(detail::EndRun{run_id, e.total_frames, e.checksum, static_cast<bool>(e.aborted), e.reason});
+      push(detail::EndRun{run_id, e.total_frames, e.checksum, *kind, static_cast<bool>(e.aborted), e.reason});
     });
   }
 

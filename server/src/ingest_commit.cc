@@ -101,7 +101,9 @@ void Committer::apply(Blocks& w, Staged& st) {
     seqs.push_back(b.seq);
     // Stored (or held with the same bytes) right after the chain's end:
     // the chain now covers it.
-    if (b.chained && b.seq == c.next_seq && b.run_hash_before == c.hash) c = {b.seq + 1, b.run_hash_after};
+    if (!b.chained || b.seq != c.next_seq) continue;
+    if (b.seq == 0 ? b.run_hash_before == run_checksum_init(b.kind) : b.kind == c.kind && b.run_hash_before == c.hash)
+      c = {b.seq + 1, b.run_hash_after, b.kind};
   }
   st.stream_progress = true;
 }
@@ -131,7 +133,7 @@ void Committer::apply(EndRun& w, Staged& st) {
     }
     const Chain& c = chain(st, w.run_id);
     const storage::EndResult r =
-        h_.end_run(w.run_id, w.total_frames, w.checksum, storage::HeldDigest{c.next_seq, c.hash});
+        h_.end_run(w.run_id, w.total_frames, w.checksum, storage::HeldDigest{c.next_seq, c.hash, c.kind}, w.kind);
     if (r.used_digest) ++st.from_digest;
     verdict(st, w.run_id, before, r.status, r.reason);
   } catch (const InputError& e) {

@@ -30,11 +30,12 @@ class Committer {
   void commit(std::vector<Work>& batch);
 
  private:
-  // The run's FNV-1a 64 over chunks 0..next_seq-1 as this server stored
-  // them; lets end_run skip reading the run back (storage::HeldDigest).
+  // The run's checksum (of `kind`) over chunks 0..next_seq-1 as this server
+  // stored them; lets end_run skip reading the run back (storage::HeldDigest).
   struct Chain {
     int64_t next_seq = 0;
     uint64_t hash = kFnv1a64Init;
+    ChecksumKind kind = ChecksumKind::fnv1a64;
   };
   struct Ack {
     std::string run_id;

@@ -19,9 +19,10 @@ struct ValidBlock {
   int64_t seq = 0, first_frame = 0, n_frames = 0;
   std::vector<uint8_t> bytes;
   // Set when the receive thread hashed this block right after seq - 1 of the
-  // same run: the run's FNV-1a 64 before and after it (see Chain).
+  // same run: the run's checksum (of `kind`) before and after it (see Chain).
   bool chained = false;
   uint64_t run_hash_before = 0, run_hash_after = 0;
+  ChecksumKind kind = ChecksumKind::fnv1a64;
 };
 
 struct BeginRun {
@@ -35,6 +36,7 @@ struct EndRun {
   std::string run_id;
   int64_t total_frames = 0;
   uint64_t checksum = 0;
+  ChecksumKind kind = ChecksumKind::fnv1a64;
   bool aborted = false;
   std::string reason;
 };

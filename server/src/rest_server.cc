@@ -169,6 +169,14 @@ struct RestServer::Impl {
     if (!r) return send_error(res, 404, "no run '" + run_id + "'");
     res.status = 200;
     res.set_header("X-Run-Status", storage::to_string(r->status));
+    // No chunk yet (a run just begun): an empty body with Content-Length 0.
+    // httplib takes a provider of length 0 as "length unknown": it would
+    // call ours again and again at offset 0 (nothing written, never done)
+    // and the client would wait for its read timeout.
+    if (r->samples_bytes() == 0) {
+      res.set_content("", "application/octet-stream");
+      return;
+    }
     res.set_content_provider(
         static_cast<size_t>(r->samples_bytes()), "application/octet-stream",
         [d, run_id](size_t offset, size_t, httplib::DataSink& sink) {

@@ -214,8 +214,9 @@ struct ChunkScan {
   std::uint64_t hash = kFnv1a64Init;
 };
 
-ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool with_blobs) {
+ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool with_blobs, ChecksumKind kind) {
   ChunkScan r;
+  r.hash = run_checksum_init(kind);
   std::int64_t next_seq = 0, next_frame = 0;
   auto& s = with_blobs
                 ? impl.stmt("SELECT seq, first_frame, n_frames, data FROM sample_chunks WHERE run_id = ? ORDER BY seq")
@@ -231,7 +232,7 @@ ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool wit
               std::to_string(next_frame);
     if (with_blobs) {
       const auto blob = s.col_blob(3);
-      r.hash = fnv1a64(blob.data(), blob.size(), r.hash);
+      r.hash = block_checksums(kind, blob.data(), blob.size(), r.hash).run_after;
     }
     ++r.n_chunks;
     r.frames += n;
@@ -245,7 +246,7 @@ ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool wit
 }  // namespace
 
 EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum,
-                             std::optional<HeldDigest> digest) {
+                             std::optional<HeldDigest> digest, ChecksumKind kind) {
   impl_->require_writer("end_run");
   const std::string ctx = "end_run " + quoted(run_id);
   if (total_frames < 0) throw InputError(ctx + ": total_frames must be >= 0");
@@ -261,12 +262,12 @@ EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frame
   }
   EndResult r;
   ChunkScan scan;
-  if (digest) {
-    scan = scan_chunks(*impl_, run_id, false);
+  if (digest && digest->kind == kind) {
+    scan = scan_chunks(*impl_, run_id, false, kind);
     r.used_digest = scan.gap.empty() && scan.n_chunks == digest->n_chunks;  // exactly seq 0..n-1
     scan.hash = digest->checksum;
   }
-  if (!r.used_digest) scan = scan_chunks(*impl_, run_id, true);
+  if (!r.used_digest) scan = scan_chunks(*impl_, run_id, true, kind);
   r.frames_held = scan.frames;
   r.checksum_held = scan.hash;
   if (!scan.gap.empty()) {

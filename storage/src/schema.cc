@@ -160,10 +160,8 @@ void set_pragmas(Db& db, bool read_only) {
   // A reader must not turn a rollback-journal file into WAL behind a writer's back.
   if (!read_only) {
     // SQLite's default 4 KiB pages. 64 KiB pages made inserts of 30 KiB
-    // chunks 2.3x faster, but a WAL reader then stalled for the whole busy
-    // timeout in about 1 of 8 runs of the REST test that reads a run while
-    // it is written (Rest.ARunStillReceiving...; cause not found yet), so
-    // they are off until that is understood (docs/storage.md).
+    // chunks 2.3x faster; they were turned off for a REST hang that turned
+    // out not to be SQLite's (docs/storage.md, page_size).
     Stmt wal(db, "PRAGMA journal_mode = WAL");
     if (!wal.step() || wal.col_text(0) != "wal")
       throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");

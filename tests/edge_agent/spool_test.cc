@@ -4,9 +4,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
+#include "ambdiag/core/io_util.h"
 #include "test_support.h"
 
 namespace ambdiag::agent {
@@ -14,13 +16,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Block make_block(int64_t seq, size_t bytes) {
+Block make_block(int64_t seq, size_t bytes, ChecksumKind kind = SpooledHeader{}.checksum_kind) {
   Block b;
   b.seq = seq;
   b.first_frame = seq * 10;
   b.n_frames = 10;
   for (size_t i = 0; i < bytes; ++i) b.payload.push_back(static_cast<char>((seq * 31 + static_cast<int64_t>(i)) & 0xff));
-  b.checksum = fnv1a64(b.payload.data(), b.payload.size());
+  b.checksum = block_checksum(kind, b.payload.data(), b.payload.size());
   return b;
 }
 
@@ -36,6 +38,13 @@ TEST(Spool, WritesEveryBlockToDiskKeepsTheFirstInMemoryAndReadsThemBack) {
   Spool spool(dir, "P-1/run a", 1 << 20, 2);
   for (int64_t s = 0; s < 5; ++s) ASSERT_TRUE(spool.put(make_block(s, 1000)));
   EXPECT_EQ(spool.memory_blocks(), 2u);
+  ASSERT_NE(spool.peek(1), nullptr);  // in memory: no copy
+  EXPECT_EQ(spool.peek(1)->payload, make_block(1, 1000).payload);
+  EXPECT_EQ(spool.peek(2), nullptr);  // on disk only
+  Block moved = make_block(5, 1000);
+  ASSERT_TRUE(spool.put(std::move(moved)));
+  EXPECT_EQ(spool.get(5).payload, make_block(5, 1000).payload);
+  spool.erase(5);
   EXPECT_EQ(files_in(dir), 1u);  // one segment
   EXPECT_GT(spool.disk_bytes(), 5000u);
   for (int64_t s = 0; s < 5; ++s) {
@@ -124,6 +133,38 @@ TEST(Spool, ARunSurvivesTheAgentAndIsRecoveredWhole) {
   for (int64_t s = 0; s < 6; ++s) EXPECT_EQ(r->get(s).payload, make_block(s, 700 + static_cast<size_t>(s)).payload);
   r->remove();
   EXPECT_FALSE(fs::exists(run_dir));
+}
+
+// A spool folder of a protocol 1.0 agent: header.json without checksum_kind,
+// blocks with FNV-1a 64 checksums. A new agent recovers and verifies it with
+// FNV-1a, so it forwards the run with the checksums of its blocks and end.
+TEST(Spool, ASpoolOfAnEarlierAgentIsVerifiedWithFnv1a) {
+  const fs::path dir = ambdiag::testing::scratch_dir();
+  fs::path run_dir;
+  {
+    Spool spool(dir, "P-1/old", 1 << 20, 0);
+    SpooledHeader h = header_of("P-1/old");
+    h.checksum_kind = ChecksumKind::fnv1a64;
+    spool.write_header(h);
+    for (int64_t s = 0; s < 3; ++s) ASSERT_TRUE(spool.put(make_block(s, 500, ChecksumKind::fnv1a64)));
+    run_dir = spool.folder();
+  }
+  // What an earlier agent wrote: no checksum_kind at all.
+  auto j = nlohmann::json::parse(read_file_bytes((run_dir / "header.json").string()));
+  j.erase("checksum_kind");
+  write_file_atomic((run_dir / "header.json").string(), j.dump());
+  std::vector<std::string> problems;
+  const auto r = Spool::recover(run_dir, 1 << 20, 0, problems);
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  EXPECT_EQ(r->checksum_kind(), ChecksumKind::fnv1a64);
+  EXPECT_EQ(r->seqs(), (std::vector<int64_t>{0, 1, 2}));
+  EXPECT_EQ(r->get(2).checksum, fnv1a64(r->get(2).payload.data(), 500));
+  // The same blocks read as xxh64 would all be refused as damaged.
+  j["checksum_kind"] = "xxh64";
+  write_file_atomic((run_dir / "header.json").string(), j.dump());
+  problems.clear();
+  EXPECT_TRUE(Spool::recover(run_dir, 1 << 20, 0, problems)->seqs().empty());
+  EXPECT_EQ(problems.size(), 3u);
 }
 
 // A run of three 1000-byte blocks (records of 1048 bytes) in one segment,

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -25,26 +26,35 @@ namespace ambdiag::testing {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-// A domain id per test process: pid-derived, away from the default 0.
+// A domain id per test process: pid-derived, away from the default 0. Two
+// processes can still draw the same one (120 ids), so each test also has
+// a partition of its own: servers, agents and readers of other tests (other
+// worktrees run theirs on this machine) never match it.
 inline int unique_domain() { return 100 + static_cast<int>(getpid() % 120); }
+inline std::string unique_partition() {
+  static int n = 0;
+  return "test-" + std::to_string(getpid()) + "-" + std::to_string(n++) + "-" +
+         std::to_string(std::chrono::steady_clock::now().time_since_epoch().count() % 1000000007);
+}
 
 class StreamTest : public ::testing::Test {
  protected:
   fs::path dir = scratch_dir();
   int domain = unique_domain();
+  std::string partition = unique_partition();
   fs::path db = dir / "historian.db";
   std::map<std::string, std::string> env{{"CYCLONEDDS_URI", "file://" AMBDIAG_CYCLONE_LOCAL_XML}};
   int log_n = 0;
 
   std::unique_ptr<Process> start_server(const std::vector<std::string>& extra = {}) {
     std::vector<std::string> argv = {AMBDIAG_CLI, "serve", "--db", db.string(), "--http-port", "0", "--domain",
-                                     std::to_string(domain)};
+                                     std::to_string(domain), "--partition", partition};
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, env, (dir / ("server" + std::to_string(log_n++) + ".log")).string());
   }
   std::unique_ptr<Process> start_agent(const fs::path& run_dir, const std::vector<std::string>& extra = {}) {
     std::vector<std::string> argv = {AMBDIAG_AGENT, "replay", run_dir.string(), "--domain", std::to_string(domain),
-                                     "--spool-dir", (dir / "spool").string()};
+                                     "--partition", partition, "--spool-dir", (dir / "spool").string()};
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, env, (dir / ("agent" + std::to_string(log_n++) + ".log")).string());
   }

@@ -51,7 +51,7 @@ TEST_F(StreamTest, MonitoringSnapshotsAreStoredServedAndBadOnesRejectedAndCounte
   char empty[] = "";
   const int64_t t0 = 1'795'003'200'000'000'000;  // 2026-11-18T12:00:00Z
   {
-    stream::AgentEndpoints writer(domain, "site");
+    stream::AgentEndpoints writer(domain, partition);
     for (int i = 0; i < 200 && writer.monitoring.matched() == 0; ++i) std::this_thread::sleep_for(50ms);
     ASSERT_GT(writer.monitoring.matched(), 0);
 

@@ -34,7 +34,7 @@ TEST_F(StreamTest, RogueWriterSamplesAreRejectedCountedAndServerKeepsRunning) {
   const RunRecording rec = read_run(good_run.string());
   const uint32_t n_ch = static_cast<uint32_t>(rec.channels.size());
   {
-    stream::AgentEndpoints rogue(domain, "site");
+    stream::AgentEndpoints rogue(domain, partition);
     for (int i = 0; i < 200 && rogue.block.matched() == 0; ++i) std::this_thread::sleep_for(50ms);
     ASSERT_GT(rogue.block.matched(), 0);
 

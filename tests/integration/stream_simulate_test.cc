@@ -20,7 +20,7 @@ TEST_F(StreamTest, SimulatedRunsArriveCompleteAndSnapshotsArePublished) {
   // A monitoring reader in the agents' partition, before the agent starts.
   dds::Participant participant(domain);
   stream::Topics topics(participant);
-  dds::Subscriber sub(participant, dds::Qos().partitions({"site"}));
+  dds::Subscriber sub(participant, dds::Qos().partitions({partition}));
   dds::Reader<ambdiag_stream_MonitoringSnapshot> snapshots(sub, topics.monitoring, stream::monitoring_qos());
 
   auto server = start_server();
@@ -34,7 +34,8 @@ TEST_F(StreamTest, SimulatedRunsArriveCompleteAndSnapshotsArePublished) {
                      "monitoring_s": 0.25}})");
   const std::vector<std::string> argv = {AMBDIAG_AGENT, "simulate", "--model", data_file("reference_pump/plant.json").string(),
                                          "--pump", "SIM-7", "--fault", "dry_run", "--config", cfg.string(), "--fast",
-                                         "--domain", std::to_string(domain), "--spool-dir", (dir / "spool").string(),
+                                         "--domain", std::to_string(domain), "--partition", partition,
+                                         "--spool-dir", (dir / "spool").string(),
                                          "--timeout", "60"};
   Process agent(argv, env, (dir / "agent.log").string());
   ASSERT_EQ(agent.wait(300s), 0) << agent.log() << "\n--- server ---\n" << server->log();

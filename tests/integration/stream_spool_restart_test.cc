@@ -28,7 +28,7 @@ class SpoolRestartTest : public StreamTest {
   }
   std::unique_ptr<Process> start_forward() {
     return std::make_unique<Process>(
-        std::vector<std::string>{AMBDIAG_AGENT, "forward", "--domain", std::to_string(domain), "--spool-dir",
+        std::vector<std::string>{AMBDIAG_AGENT, "forward", "--domain", std::to_string(domain), "--partition", partition, "--spool-dir",
                                  spool.string(), "--timeout", "30"},
         env, (dir / ("forward" + std::to_string(log_n++) + ".log")).string());
   }

@@ -139,6 +139,28 @@ TEST_F(Rest, SamplesAreTheRecordingBytesExactly) {
   EXPECT_TRUE(head->body.empty());
 }
 
+// A run that has no chunk yet (its header arrived, its first block not):
+// its samples are an empty body at once. (Served by a content provider of
+// length 0, httplib took the length as unknown and called the provider
+// forever: the first download of the read-while-writing test below, when
+// it came before the writer's first commit, hung for the client's timeout.)
+TEST_F(Rest, TheSamplesOfARunWithoutChunksAreAnEmptyBodyAtOnce) {
+  const auto header = storage::run_header_from_json(ambdiag::testing::run_json_text("P-7/empty:1", 4));
+  writer_->begin_run(header);
+  start();
+  auto c = client();
+  c.set_read_timeout(2, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = c.Get(runs_url(header.run_id) + "/samples.f32");
+  ASSERT_TRUE(r) << httplib::to_string(r.error());
+  EXPECT_EQ(r->status, 200);
+  EXPECT_EQ(r->get_header_value("Content-Length"), "0");
+  EXPECT_EQ(r->get_header_value("X-Run-Status"), "receiving");
+  EXPECT_TRUE(r->body.empty());
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(2));
+  EXPECT_EQ(c.Get("/api/v1/health")->status, 200);  // the connection is still usable
+}
+
 TEST_F(Rest, ARunStillReceivingIsServedConsistentlyWhileTheWriterAddsChunks) {
   const auto header = storage::run_header_from_json(ambdiag::testing::run_json_text("P-7/live:1", 4));
   writer_->begin_run(header);

@@ -10,7 +10,7 @@ struct Block {
   int64_t seq = 0;          // 0, 1, 2, ... within the run
   int64_t first_frame = 0;  // index of the block's first frame in the run
   uint32_t n_frames = 0;
-  uint64_t checksum = 0;    // FNV-1a 64 of payload
+  uint64_t checksum = 0;    // of payload, of the run's checksum kind (SpooledHeader)
   std::string payload;      // float32 LE, frame-major, channel-minor
 };
 

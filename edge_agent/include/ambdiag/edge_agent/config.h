@@ -4,7 +4,7 @@
 //    "simulation": {"excitation": "multisine", "faults": ["dry_run"], "sample_rate_hz": 2048,
 //                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
 //                   "meas_periods": 4, "monitoring_s": 1, "seed": 1},
-//    "dds": {"domain": 0, "partition": "site-a"},
+//    "dds": {"domain": 0, "partition": "site-a", "checksum": "xxh64"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
 //    "block_frames": 512}
 // Every key is optional; unknown keys are refused (a typo must not silently
@@ -45,6 +45,9 @@ struct AgentConfig {
   SimulationConfig simulation;
   int domain = 0;                      // DDS domain id, 0..232
   std::string partition = "site";      // DDS partition: one per site
+  // Checksums of new runs: "xxh64" (protocol 1.1) or "fnv1a64" for a server
+  // of protocol 1.0, which knows no other (docs/streaming.md).
+  std::string checksum = "xxh64";
   std::string spool_dir = "ambdiag-spool";
   uint64_t spool_limit_bytes = 1ull << 30;
   uint32_t memory_blocks = 256;        // unacknowledged blocks kept in memory before the disk

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "ambdiag/core/checksum.h"
 #include "ambdiag/edge_agent/block.h"
 
 namespace ambdiag::agent {
@@ -39,13 +40,16 @@ struct SpooledHeader {
   uint32_t n_channels = 0;
   double sample_rate_hz = 0.0;
   uint32_t frames_per_block = 0;
+  // How the blocks' and the run's checksums are computed (core/checksum.h);
+  // header.json without it (spools of earlier agents): FNV-1a 64.
+  ChecksumKind checksum_kind = ChecksumKind::xxh64;
 };
 
 // What the run end carries (end.json), written when the source is done.
 struct SpooledEnd {
   int64_t n_blocks = 0;
   int64_t total_frames = 0;
-  uint64_t checksum = 0;  // FNV-1a 64 of the whole run
+  uint64_t checksum = 0;  // of the whole run, of the header's checksum_kind
 };
 
 class Spool {
@@ -68,14 +72,21 @@ class Spool {
   void write_header(const SpooledHeader& h);
   void write_end(const SpooledEnd& e);
   const std::optional<SpooledHeader>& header() const { return header_; }
+  // The checksum kind of the blocks held (the header's; the default before one is written).
+  ChecksumKind checksum_kind() const { return header_ ? header_->checksum_kind : SpooledHeader{}.checksum_kind; }
   const std::optional<SpooledEnd>& end() const { return end_; }
 
-  // Stores the block; false (nothing stored) if it does not fit.
+  // Stores the block; false (nothing stored, `b` untouched) if it does not
+  // fit. The rvalue form moves the payload into the memory cache.
   bool put(const Block& b);
+  bool put(Block&& b);
   // Would a block of this payload size be accepted now?
   bool has_room(size_t payload_bytes) const;
   // The stored block; throws std::runtime_error if its record is damaged.
   Block get(int64_t seq) const;
+  // The block if it is in the memory cache (no copy, no disk read), else null;
+  // valid until the next put/erase.
+  const Block* peek(int64_t seq) const;
   bool contains(int64_t seq) const { return index_.count(seq) > 0; }
   void erase(int64_t seq);
   // Sequence numbers held, ascending.
@@ -102,6 +113,7 @@ class Spool {
     int64_t live = 0;  // blocks not yet acknowledged
   };
   Spool(std::filesystem::path run_dir, uint64_t limit_bytes, size_t memory_blocks);
+  void append(const Block& b);  // the record to the open segment, indexed
   std::filesystem::path segment_path(int64_t segment) const;
   void open_segment(int64_t segment);
   void close_segment();

@@ -16,6 +16,7 @@
 #include <functional>
 #include <string>
 
+#include "ambdiag/core/checksum.h"
 #include "ambdiag/edge_agent/block_source.h"
 #include "ambdiag/edge_agent/spool.h"
 #include "ambdiag/proto/stream.h"
@@ -25,6 +26,10 @@ namespace ambdiag::agent {
 struct StreamOptions {
   bool paced = true;                                 // at the recording's sample rate
   size_t window_blocks = 128;                        // sent, not yet acknowledged
+  // Checksums of new runs: XXH64 (protocol 1.1, needs a 1.1 server) or
+  // FNV-1a 64 (what a 1.0 server verifies). Runs recovered from the spool
+  // keep the kind they were spooled with.
+  ChecksumKind checksum_kind = ChecksumKind::xxh64;
   std::chrono::milliseconds retransmit_after{2000};  // no ack progress -> resend backlog
   std::chrono::milliseconds heartbeat{250};
   std::chrono::milliseconds timeout{60000};          // no progress at all -> give up

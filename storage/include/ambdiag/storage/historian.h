@@ -104,18 +104,19 @@ struct EndResult {
   RunStatus status = RunStatus::receiving;
   std::string reason;  // empty when complete
   std::int64_t frames_held = 0;
-  std::uint64_t checksum_held = 0;  // FNV-1a 64 of the chunks held, in seq order
+  std::uint64_t checksum_held = 0;  // run checksum (of the end's kind) of the chunks held, in seq order
   bool used_digest = false;         // checksum_held came from the caller's HeldDigest
 };
 
-// What a writer knows of chunks it put itself: the FNV-1a 64 of chunks
-// 0..n_chunks-1 in seq order, computed over the exact bytes it passed to
+// What a writer knows of chunks it put itself: the run checksum of `kind`
+// (core/checksum.h) of chunks 0..n_chunks-1 in seq order, computed over the exact bytes it passed to
 // put_chunks calls that succeeded (stored, or identical duplicates). With it
 // end_run need not read the blobs back (a run of 1 GB costs seconds to
 // re-read); it is used only if the run holds exactly chunks 0..n_chunks-1.
 struct HeldDigest {
   std::int64_t n_chunks = 0;
   std::uint64_t checksum = kFnv1a64Init;
+  ChecksumKind kind = ChecksumKind::fnv1a64;
 };
 
 class Historian {
@@ -150,10 +151,13 @@ class Historian {
   // database. Sets `complete` or `incomplete` with the first problem found.
   // Calling it again (e.g. after late chunks of an incomplete run) checks
   // again; on a complete run with the same figures it is a no-op, with other
-  // figures it throws. With a `digest` that covers every chunk held, the
-  // checksum is the digest's and only the chunk index is read.
+  // figures it throws. With a `digest` of the same kind that covers every
+  // chunk held, the checksum is the digest's and only the chunk index is
+  // read. `kind`: how `checksum` is computed (core/checksum.h; a chunk is a
+  // block): FNV-1a 64 of the whole run (protocol 1.0 agents, imports) or
+  // the chain of the chunks' XXH64 (protocol 1.1 agents).
   EndResult end_run(const std::string& run_id, std::int64_t total_frames, std::uint64_t checksum,
-                    std::optional<HeldDigest> digest = std::nullopt);
+                    std::optional<HeldDigest> digest = std::nullopt, ChecksumKind kind = ChecksumKind::fnv1a64);
   // For a run whose end will not come (agent gone): `incomplete` with the
   // reason. A complete run stays complete. Returns the status afterwards.
   RunStatus mark_incomplete(const std::string& run_id, const std::string& reason);
