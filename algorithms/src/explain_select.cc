@@ -86,10 +86,10 @@ class Selector {
     const size_t split = c.params.size();
     if (c2) params.insert(params.end(), c2->params.begin(), c2->params.end());
     auto builder = [&](const std::vector<double>& x) { return build(sel, &c, &x, c2, split); };
-    ParameterFitOptions fo;
+    PlantFitOptions fo;
     fo.max_iterations = 6;
     fo.rel_tolerance = 1e-3;
-    const ParameterFitResult fr = fit_parameters(eval_, builder, params, fit_, fo);
+    const PlantFitResult fr = fit_parameters(eval_, builder, params, fit_, fo);
     evaluations_ += fr.evaluations;
     Trial t;
     t.c = &c;
@@ -255,13 +255,13 @@ class Selector {
       }
       return out;
     }
-    ParameterFitOptions fo;
+    PlantFitOptions fo;
     fo.max_iterations = 12;
     fo.rel_tolerance = 1e-4;
     std::vector<FitParameter> params = c.params;
     if (start)
       for (size_t i = 0; i < params.size(); ++i) params[i].initial = (*start)[i];
-    const ParameterFitResult fr = fit_least_squares([&](const std::vector<double>& x) { return resid(x, fit_, r0); }, params, fo);
+    const PlantFitResult fr = fit_least_squares([&](const std::vector<double>& x) { return resid(x, fit_, r0); }, params, fo);
     out.x = fr.x;
     out.gain_fit = cf - fr.chi2;
     out.gain_val = cv - chi2_of(resid(fr.x, val_, rv0));
@@ -473,9 +473,9 @@ class Selector {
         for (size_t i = 0; i < s2[k].x.size(); ++i) s2[k].x[i] = x[offset[k] + i];
       return s2;
     };
-    ParameterFitOptions fo;
+    PlantFitOptions fo;
     fo.max_iterations = max_iterations;
-    const ParameterFitResult fr = fit_parameters(eval_, [&](const std::vector<double>& x) { return build(unpack(x)); }, params, fit_, fo);
+    const PlantFitResult fr = fit_parameters(eval_, [&](const std::vector<double>& x) { return build(unpack(x)); }, params, fit_, fo);
     evaluations_ += fr.evaluations;
     sel = unpack(fr.x);
     for (size_t k = 0; k < sel.size(); ++k) {

@@ -191,15 +191,15 @@ FrfData PlantFrfEvaluator::model_frf(const PlantVariant& v) {
   return out;
 }
 
-ParameterFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder& build, const std::vector<FitParameter>& params,
-                                  const std::vector<int>& lines, const ParameterFitOptions& options) {
+PlantFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder& build, const std::vector<FitParameter>& params,
+                                  const std::vector<int>& lines, const PlantFitOptions& options) {
   return fit_least_squares([&](const std::vector<double>& x) { return eval.residual(build(x), lines); }, params, options);
 }
 
-ParameterFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
-                                     const ParameterFitOptions& options) {
+PlantFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
+                                     const PlantFitOptions& options) {
   const int p = static_cast<int>(params.size());
-  ParameterFitResult res;
+  PlantFitResult res;
   std::vector<double> x(params.size());
   for (int i = 0; i < p; ++i) x[i] = std::clamp(params[i].initial, params[i].lower, params[i].upper);
   auto residual_of = [&](const std::vector<double>& xv) {

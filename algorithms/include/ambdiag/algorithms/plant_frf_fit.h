@@ -77,12 +77,16 @@ struct FitParameter {
 
 using VariantBuilder = std::function<PlantVariant(const std::vector<double>& x)>;
 
-struct ParameterFitOptions {
+// (Not ParameterFitOptions / ParameterFitResult: frf_parameter_fit.h has
+// those names in the same namespace, and two class definitions of one name
+// break the one-definition rule: their implicit inline members clash at link
+// time; ASan caught the wrong destructor freeing a stack address.)
+struct PlantFitOptions {
   int max_iterations = 20;
   double rel_tolerance = 1e-4;  // stop when chi2 improves by less than this fraction
 };
 
-struct ParameterFitResult {
+struct PlantFitResult {
   std::vector<double> x;
   std::vector<double> sd;  // from (J^T J)^-1 scaled by chi2/dof (NaN at a bound)
   double chi2 = 0.0;       // on the fit lines
@@ -96,14 +100,14 @@ struct ParameterFitResult {
 // Levenberg-Marquardt on the weighted residual at `lines`, Jacobian by
 // forward differences in the scaled coordinates. An empty parameter list
 // just evaluates chi2.
-ParameterFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder& build,
+PlantFitResult fit_parameters(PlantFrfEvaluator& eval, const VariantBuilder& build,
                                   const std::vector<FitParameter>& params, const std::vector<int>& lines,
-                                  const ParameterFitOptions& options = {});
+                                  const PlantFitOptions& options = {});
 
 // The same Levenberg-Marquardt on any weighted complex residual r(x).
 using ResidualFunction = std::function<std::vector<std::complex<double>>(const std::vector<double>& x)>;
-ParameterFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
-                                     const ParameterFitOptions& options = {});
+PlantFitResult fit_least_squares(const ResidualFunction& residual, const std::vector<FitParameter>& params,
+                                     const PlantFitOptions& options = {});
 
 double chi2_of(const std::vector<std::complex<double>>& r);
 
