@@ -274,6 +274,33 @@ TEST(RunRecording, RefusesANaNSampleNamingFrameAndChannel) {
   EXPECT_PRED2(contains, read_error(dir), "samples.f32: frame 3, channel xAx: NaN or infinite sample");
 }
 
+// The reader checks the file piece by piece (64 Ki values) and the check
+// runs over groups of 16: a bad value past the first piece, and one in a
+// group's tail, are found and named, the first in file order.
+TEST(RunRecording, FindsTheFirstNonFiniteSampleAnywhereInALongFile) {
+  const size_t frames = 40001;  // 160004 values: three pieces, a tail of 4 after the last group of 16
+  std::vector<float> v = ramp(4 * frames);
+  v[4 * 30000 + 1] = std::numeric_limits<float>::infinity();
+  v[4 * 40000 + 3] = std::numeric_limits<float>::quiet_NaN();
+  const auto dir = make_run("long", small_multisine().dump(), float_bytes(v));
+  EXPECT_PRED2(contains, read_error(dir), "samples.f32: frame 30000, channel fAx: NaN or infinite sample");
+
+  v[4 * 30000 + 1] = 0.0f;  // only the last value of the file is left
+  const auto dir2 = make_run("long2", small_multisine().dump(), float_bytes(v));
+  const std::string e = read_error(dir2);
+  EXPECT_NE(e.find("samples.f32: frame 40000, channel speed: NaN"), std::string::npos) << e;
+
+  RunRecording run = read_run(make_run("long3", small_multisine().dump(), float_bytes(ramp(4 * frames))));
+  run.validate();  // all finite
+  run.samples.back() = -std::numeric_limits<float>::infinity();
+  try {
+    run.validate();
+    ADD_FAILURE() << "validate() accepted an infinite sample";
+  } catch (const InputError& err) {
+    EXPECT_NE(std::string(err.what()).find("frame 40000"), std::string::npos) << err.what();
+  }
+}
+
 TEST(RunRecording, RefusesAFolderWithoutRunJsonOrSamplesNamingTheFile) {
   const auto dir = make_run("run", small_multisine().dump(), float_bytes(ramp(4 * 60)));
   std::filesystem::remove(dir / "samples.f32");

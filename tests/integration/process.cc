@@ -51,8 +51,19 @@ bool Process::running() {
   return !reaped_;
 }
 
+namespace {
+// A sanitized -O0 build runs the children (FE models, simulation) about ten
+// times slower; the deadlines only guard against hangs, so they stretch.
+constexpr int kDeadlineScale =
+#if defined(__SANITIZE_ADDRESS__)
+    10;
+#else
+    1;
+#endif
+}  // namespace
+
 int Process::wait(std::chrono::milliseconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const auto deadline = std::chrono::steady_clock::now() + timeout * kDeadlineScale;
   while (running()) {
     if (std::chrono::steady_clock::now() > deadline) return -1000;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));

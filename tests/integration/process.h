@@ -20,7 +20,8 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   void signal(int sig);
-  // Exit code, or -signal if killed; -1000 if still running at the deadline.
+  // Exit code, or -signal if killed; -1000 if still running at the deadline
+  // (stretched ten-fold in an AddressSanitizer build).
   int wait(std::chrono::milliseconds timeout);
   bool running();
   std::string log() const;

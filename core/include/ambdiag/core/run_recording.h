@@ -79,6 +79,9 @@ struct RunRecording {
   // a sample is NaN or infinite, or a value breaks a rule of the format
   // (docs/formats.md, "Run recording"); the message names the field.
   void validate() const;
+  // All of validate() but the sample values (for readers that check each
+  // value as they read it).
+  void validate_structure() const;
   // Throws InputError if a channel names no sensor or actuator of the plant.
   void validate_against(const PlantModel& plant) const;
 };
