@@ -150,7 +150,7 @@ struct E2e {
   double mb_per_s = 0, wall_s = 0, cpu_s = 0, server_rss_mb = 0, server_cpu_s = 0;
   double span_s = 0, span_mb_per_s = 0;  // first block received -> last commit (server's figure)
   std::string queue_peak;                 // "N bytes", from the server's last line
-  long long resends = 0, orphans = 0, duplicates = 0;  // agents' re-sends; server: blocks before the header, twice
+  long long resends = 0, orphans = 0, duplicates = 0, dds_rejected = 0;  // agents' re-sends; server: blocks before the header, twice
   int failed = 0;
 };
 
@@ -201,8 +201,9 @@ E2e end_to_end(Env& e, const std::vector<fs::path>& runs, double bytes, bool fas
     std::smatch m;
     const std::string log = server->log();
     if (std::regex_search(log, m, re)) out.queue_peak = m[1];
-    const std::regex counts(R"(([0-9]+) duplicates, ([0-9]+) before their run's header)");
-    if (std::regex_search(log, m, counts)) out.duplicates = std::stoll(m[1]), out.orphans = std::stoll(m[2]);
+    const std::regex counts(R"(([0-9]+) duplicates, ([0-9]+) before their run's header, ([0-9]+) refused)");
+    if (std::regex_search(log, m, counts))
+      out.duplicates = std::stoll(m[1]), out.orphans = std::stoll(m[2]), out.dds_rejected = std::stoll(m[3]);
   }
   for (auto& a : agents) {
     const std::regex re(R"(([0-9]+) resends)");
@@ -317,11 +318,11 @@ int main(int argc, char** argv) {
                 "block received to the last commit (%.2f s); %.1f MB/s from the agents' start (%.2f s wall); "
                 "CPU %.2f s (user+sys, all processes; server %.2f s); server peak RSS %.0f MB; UDP datagrams dropped by "
                 "the kernel %lld; machine busy %.2f of %.2f CPU-s (others %.2f); agents' re-sends %lld, blocks before "
-                "their header %lld, duplicates %lld; failed %d\n",
+                "their header %lld, duplicates %lld, refused by the full DDS reader %lld; failed %d\n",
                 rep, agents, fast.span_mb_per_s, fast.span_s, fast.mb_per_s, fast.wall_s, fast.cpu_s,
                 fast.server_cpu_s, fast.server_rss_mb, fast.udp_drops, fast.machine_busy_s, fast.machine_s,
                 std::max(0.0, fast.machine_busy_s - fast.cpu_s), fast.resends, fast.orphans, fast.duplicates,
-                fast.failed);
+                fast.dds_rejected, fast.failed);
     double st_cpu = 0;
     const double st = storage_ceiling(e.dir, runs, &st_cpu);
     std::printf("rep %d: ceiling Historian::put_chunks, 256 chunks per transaction: %.1f MB/s (%.2f s wall, CPU %.2f s)"

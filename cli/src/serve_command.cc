@@ -87,11 +87,11 @@ int run_serve(const std::vector<std::string>& argv) {
   std::fprintf(stderr,
                "ambdiag serve: stopped (%lld blocks, %lld bytes committed; %.3f s from the first block received to "
                "the last commit; queue peak %lld bytes; %lld blocks received, %lld duplicates, %lld before their "
-               "run's header)\n",
+               "run's header, %lld refused by the full DDS reader)\n",
                static_cast<long long>(c.blocks_stored.load()), static_cast<long long>(c.bytes_stored.load()),
                h.value("streaming_span_s", 0.0), static_cast<long long>(c.queue_peak_bytes.load()),
                static_cast<long long>(c.blocks_received.load()), static_cast<long long>(c.blocks_duplicate.load()),
-               static_cast<long long>(c.blocks_orphan.load()));
+               static_cast<long long>(c.blocks_orphan.load()), static_cast<long long>(c.blocks_rejected_by_dds.load()));
   return kExitOk;
 }
 

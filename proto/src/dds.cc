@@ -114,6 +114,13 @@ int32_t Reader<T>::matched() const {
 }
 
 template <class T>
+int64_t Reader<T>::rejected_total() const {
+  dds_sample_rejected_status_t st;
+  check(dds_get_sample_rejected_status(get(), &st), "dds_get_sample_rejected_status");
+  return st.total_count;
+}
+
+template <class T>
 size_t Reader<T>::take_raw(size_t max_n, const std::function<void(const void*, const dds_sample_info_t&)>& f) const {
   constexpr size_t kBatch = 64;
   size_t valid = 0;

@@ -50,6 +50,7 @@ nlohmann::json IngestCounters::to_json() const {
                       {"runs_complete", runs_complete.load()},
                       {"runs_incomplete", runs_incomplete.load()},
                       {"blocks_orphan", blocks_orphan.load()},
+                      {"blocks_rejected_by_dds", blocks_rejected_by_dds.load()},
                       {"acks_sent", acks_sent.load()},
                       {"heartbeats", heartbeats.load()}};
   std::lock_guard lock(mu_);
@@ -345,6 +346,7 @@ struct Ingest::Impl {
     take_status();
     take_headers();
     take_blocks();
+    counters.blocks_rejected_by_dds = ep.block.rejected_total();
     take_ends();
     take_monitoring();
     check_timeouts();

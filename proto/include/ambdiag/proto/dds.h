@@ -124,6 +124,9 @@ class Reader : public Entity {
   }
   // Number of matched writers right now.
   int32_t matched() const;
+  // Samples refused so far because the reader's resource limits were full
+  // (reliable writers re-send them: back-pressure that costs round trips).
+  int64_t rejected_total() const;
 
  private:
   size_t take_raw(size_t max_n, const std::function<void(const void*, const dds_sample_info_t&)>& f) const;

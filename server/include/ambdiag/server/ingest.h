@@ -61,7 +61,8 @@ struct IngestCounters {
   std::atomic<int64_t> headers{0}, blocks_received{0}, blocks_stored{0}, blocks_duplicate{0}, bytes_stored{0},
       commits{0}, runs_complete{0}, runs_incomplete{0}, blocks_orphan{0}, acks_sent{0}, heartbeats{0},
       monitoring_stored{0}, monitoring_duplicate{0}, storage_errors{0}, queue_bytes{0}, queue_peak_bytes{0},
-      runs_verified_from_digest{0};
+      runs_verified_from_digest{0},
+      blocks_rejected_by_dds{0};  // refused by the block reader's resource limits (re-sent by DDS)
   // Steady-clock ns of the first block received and of the last commit that
   // stored blocks or ended a run: their difference is the streaming span.
   std::atomic<int64_t> first_block_ns{0}, last_commit_ns{0};
