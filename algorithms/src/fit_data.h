@@ -41,9 +41,12 @@ void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eig
 class GramSolver {
  public:
   explicit GramSolver(const Eigen::MatrixXd& a);
+  struct FromGram {};
+  GramSolver(FromGram, const Eigen::MatrixXd& gram);  // from A^T A itself
   Eigen::MatrixXd solve(const Eigen::MatrixXd& b) const;
 
  private:
+  void factor(const Eigen::MatrixXd& gram);
   Eigen::VectorXd scale_;
   Eigen::MatrixXd gram_;
   Eigen::MatrixXd chol_;
@@ -76,6 +79,28 @@ bool separable_weights(const FitData& data, Eigen::VectorXd& a, Eigen::VectorXd&
 
 // Real stacking [Re(diag(a) m); Im(diag(a) m)] of a lines x columns matrix.
 Eigen::MatrixXd stack_lines(const Eigen::MatrixXcd& m, const Eigen::VectorXd& a);
+
+// Weighted Gram matrices of one complex basis x (lines x n) for every
+// column of w2 (lines x entries, squared weights): row e holds the upper
+// triangle (column by column) of Re(x^H diag(w2(:, e)) x), which is A_e^T A_e
+// of the real stacking A_e = [Re(w_e x); Im(w_e x)]. Computed as one blocked
+// product of w2^T with the per-line products Re(conj x_li x_lj): real and
+// imaginary rows merged per line, half the flops of stacking them per entry.
+// With first_col > 0 only the columns j >= first_col of the triangle (the
+// leading block is left out; unpacked as zeros).
+Eigen::MatrixXd entry_grams(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, Eigen::Index first_col = 0);
+Eigen::MatrixXd unpack_gram(const Eigen::Ref<const Eigen::VectorXd>& packed, Eigen::Index n, Eigen::Index first_col = 0);
+
+// Weighted least squares of every entry for a common basis phi (general
+// weights): per-entry Gram factorizations, coefficients (columns x
+// entries), weighted residuals weight .* (phi coef - h) and their cost.
+struct EntrySystems {
+  std::vector<GramSolver> gram;
+  Eigen::MatrixXd coef;
+  Eigen::MatrixXcd wresid;
+  double cost = 0.0;
+};
+EntrySystems solve_entries(const FitData& data, const Eigen::MatrixXcd& phi);
 
 struct LinearSolution {
   Eigen::MatrixXcd residues;  // entries x poles

@@ -60,11 +60,18 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
 }
 
 GramSolver::GramSolver(const Eigen::MatrixXd& a) {
-  scale_ = a.colwise().norm().transpose().cwiseMax(1e-300).cwiseInverse();
   // A^T A as a symmetric rank update: half the flops of a general product.
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
   g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
-  gram_ = scale_.asDiagonal() * Eigen::MatrixXd(g.selfadjointView<Eigen::Lower>()) * scale_.asDiagonal();
+  factor(Eigen::MatrixXd(g.selfadjointView<Eigen::Lower>()));
+}
+
+GramSolver::GramSolver(FromGram, const Eigen::MatrixXd& gram) { factor(gram); }
+
+void GramSolver::factor(const Eigen::MatrixXd& g) {
+  // Column scales: the column norms of A, sqrt of the Gram diagonal.
+  scale_ = g.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseMax(1e-300).cwiseInverse();
+  gram_ = scale_.asDiagonal() * g * scale_.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(gram_);
   ok_ = llt.info() == Eigen::Success;
   if (ok_) chol_ = llt.matrixL();
@@ -147,15 +154,12 @@ LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles)
     }
     return out;
   }
-  Eigen::MatrixXd a;
-  Eigen::VectorXd b;
+  const EntrySystems sys = solve_entries(data, phi);
+  out.cost = sys.cost;
   for (int e = 0; e < data.entries(); ++e) {
-    stack_weighted(data, phi, e, a, b);
-    const Eigen::VectorXd c = GramSolver(a).solve(a.transpose() * b);
-    out.cost += (a * c - b).squaredNorm();
-    const auto r = residues_from_coefficients(poles, c);
+    const auto r = residues_from_coefficients(poles, sys.coef.col(e));
     for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];
-    out.direct(e) = c(n - 1);
+    out.direct(e) = sys.coef(n - 1, e);
   }
   return out;
 }
