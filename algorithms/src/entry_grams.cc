@@ -2,6 +2,8 @@
 // once (general weights, one per line and entry).
 #include <Eigen/Dense>
 #include <algorithm>
+#include <utility>
+#include <vector>
 
 #include "fit_data.h"
 
@@ -16,19 +18,45 @@ constexpr Eigen::Index kBlockLines = 128;
 
 Eigen::Index packed_size(Eigen::Index n, Eigen::Index first_col) { return n * (n + 1) / 2 - first_col * (first_col + 1) / 2; }
 
-Eigen::MatrixXd entry_grams(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, Eigen::Index first_col) {
-  const Eigen::Index L = x.rows(), n = x.cols(), E = w2.cols(), np = packed_size(n, first_col);
+Eigen::MatrixXd entry_gram_pairs(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, const std::vector<std::pair<int, int>>& pairs) {
+  const Eigen::Index L = x.rows(), E = w2.cols(), np = static_cast<Eigen::Index>(pairs.size());
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(E, np);
+  if (np == 0) return out;
+  const Eigen::MatrixXd xr = x.real(), xi = x.imag();
+  Eigen::MatrixXd prod(std::min(L, kBlockLines), np);
+  for (Eigen::Index l0 = 0; l0 < L; l0 += kBlockLines) {
+    const Eigen::Index lc = std::min(kBlockLines, L - l0);
+    for (Eigen::Index k = 0; k < np; ++k) {
+      const auto [i, j] = pairs[static_cast<size_t>(k)];
+      prod.col(k).head(lc) = xr.col(i).segment(l0, lc).cwiseProduct(xr.col(j).segment(l0, lc)) +
+                             xi.col(i).segment(l0, lc).cwiseProduct(xi.col(j).segment(l0, lc));
+    }
+    out.noalias() += w2.middleRows(l0, lc).transpose() * prod.topRows(lc);
+  }
+  return out;
+}
+
+Eigen::MatrixXd entry_grams(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, Eigen::Index first_col) {
+  std::vector<std::pair<int, int>> pairs;
+  for (int j = static_cast<int>(first_col); j < x.cols(); ++j)
+    for (int i = 0; i <= j; ++i) pairs.emplace_back(i, j);
+  return entry_gram_pairs(x, w2, pairs);
+}
+
+Eigen::MatrixXd entry_grams_imag(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w) {
+  const Eigen::Index L = x.rows(), n = x.cols(), E = w.cols(), np = n * (n - 1) / 2;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(E, np);
+  if (np == 0) return out;
   const Eigen::MatrixXd xr = x.real(), xi = x.imag();
   Eigen::MatrixXd prod(std::min(L, kBlockLines), np);
   for (Eigen::Index l0 = 0; l0 < L; l0 += kBlockLines) {
     const Eigen::Index lc = std::min(kBlockLines, L - l0);
     Eigen::Index k = 0;
-    for (Eigen::Index j = first_col; j < n; ++j)
-      for (Eigen::Index i = 0; i <= j; ++i, ++k)
-        prod.col(k).head(lc) = xr.col(i).segment(l0, lc).cwiseProduct(xr.col(j).segment(l0, lc)) +
-                               xi.col(i).segment(l0, lc).cwiseProduct(xi.col(j).segment(l0, lc));
-    out.noalias() += w2.middleRows(l0, lc).transpose() * prod.topRows(lc);
+    for (Eigen::Index j = 1; j < n; ++j)
+      for (Eigen::Index i = 0; i < j; ++i, ++k)
+        prod.col(k).head(lc) = xr.col(i).segment(l0, lc).cwiseProduct(xi.col(j).segment(l0, lc)) -
+                               xi.col(i).segment(l0, lc).cwiseProduct(xr.col(j).segment(l0, lc));
+    out.noalias() += w.middleRows(l0, lc).transpose() * prod.topRows(lc);
   }
   return out;
 }

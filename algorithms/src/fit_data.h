@@ -4,6 +4,7 @@
 
 #include <complex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -90,6 +91,11 @@ Eigen::MatrixXd stack_lines(const Eigen::MatrixXcd& m, const Eigen::VectorXd& a)
 // leading block is left out; unpacked as zeros).
 Eigen::MatrixXd entry_grams(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, Eigen::Index first_col = 0);
 Eigen::MatrixXd unpack_gram(const Eigen::Ref<const Eigen::VectorXd>& packed, Eigen::Index n, Eigen::Index first_col = 0);
+// The same for a list of column pairs (i, j): E x pairs.
+Eigen::MatrixXd entry_gram_pairs(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, const std::vector<std::pair<int, int>>& pairs);
+// The imaginary counterpart, sum_l w(l, e) Im(conj x_li x_lj) for i < j
+// (antisymmetric; strict upper triangle column by column), w any weights.
+Eigen::MatrixXd entry_grams_imag(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w);
 
 // Weighted least squares of every entry for a common basis phi (general
 // weights): per-entry Gram factorizations, coefficients (columns x

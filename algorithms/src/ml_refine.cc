@@ -18,10 +18,6 @@ namespace {
 
 int parameter_count(const std::vector<cd>& poles) { return basis_columns(poles); }
 
-// General weights: K_e of J^T J is reused while every pole stays within this
-// share of its half-power bandwidth of where K_e was computed.
-constexpr double kFrozenMove = 0.1;
-
 std::vector<cd> apply_step(const std::vector<cd>& poles, const Eigen::VectorXd& step) {
   // A trailing delay parameter, if any, is not a pole and is ignored here.
   std::vector<cd> out;
@@ -145,31 +141,23 @@ Eigen::MatrixXd residue_map(const std::vector<cd>& poles, const std::vector<cd>&
 }
 
 // General weights (one per line and entry). The residual, the residues and
-// the gradient J^T r = D^T r (A^T r = 0) are exact, from the per-entry least
-// squares `sys`. Kaufman's J^T J of entry e is T_e^T K_e T_e, K_e = S_uu -
-// S_pu^T G_e^-1 S_pu, from the weighted Gram matrices of the pole basis phi
-// (G_e, in `sys`) and of its derivatives u (S_pu, S_uu): the costly part,
-// O(lines (columns + parameters) parameters) per entry. K_e depends on the
-// poles only (T_e holds the residues), so `k` may carry K_e from nearby
-// poles (refresh = false): J^T J then only proposes the LM step, while the
-// cost that accepts it and the gradient that sets the optimum stay exact.
-// With refresh, K_e is computed at `poles` and stored in `k`.
+// the gradient J^T r = D^T r (A^T r = 0) come from the per-entry least
+// squares `sys` (of the accepted LM trial, not solved again). Kaufman's J^T
+// J of entry e is T_e^T K_e T_e, K_e = S_uu - S_pu^T G_e^-1 S_pu, from the
+// weighted Gram matrices of the pole basis phi (G_e, in `sys`) and of its
+// derivatives u (S_pu, S_uu; entry_grams: one blocked product for all
+// entries, half the flops of the stacked per-entry products).
 Normal normal_equations_general(const FitData& data, const std::vector<cd>& poles, bool delay, const Eigen::MatrixXcd& phi,
-                                const EntrySystems& sys, std::vector<Eigen::MatrixXd>& k, bool refresh) {
+                                const EntrySystems& sys) {
   const int L = data.lines(), E = data.entries();
   const int npp = parameter_count(poles);
   const int np = npp + (delay ? 1 : 0);
   const int nc = static_cast<int>(phi.cols()), nb = nc + npp;
   const Eigen::MatrixXcd u = derivative_basis(poles, data.w);
   const Eigen::MatrixXd w2 = data.weight.cwiseAbs2();
-  refresh = refresh || delay || k.size() != static_cast<size_t>(E);
-  Eigen::MatrixXd grams;
-  if (refresh) {
-    Eigen::MatrixXcd basis(L, nb);
-    basis << phi, u;
-    grams = entry_grams(basis, w2, nc);  // S_pu and S_uu; G_e is in sys
-    k.resize(static_cast<size_t>(E));
-  }
+  Eigen::MatrixXcd basis(L, nb);
+  basis << phi, u;
+  const Eigen::MatrixXd grams = entry_grams(basis, w2, nc);  // S_pu and S_uu; G_e is in sys
   const Eigen::MatrixXd ur = u.real(), ui = u.imag();
   const Eigen::MatrixXd grad = ur.transpose() * data.weight.cwiseProduct(sys.wresid.real()) + ui.transpose() * data.weight.cwiseProduct(sys.wresid.imag());
   // Delay column v_e = -w_e .* (j w h_e), exact (data, not a common basis).
@@ -196,14 +184,11 @@ Normal normal_equations_general(const FitData& data, const std::vector<cd>& pole
     for (size_t q = 0; q < r.size(); ++q) out.linear.residues(e, static_cast<Eigen::Index>(q)) = r[q];
     out.linear.direct(e) = sys.coef(nc - 1, e);
     const GramSolver& gram = sys.gram[static_cast<size_t>(e)];
-    Eigen::MatrixXd spu;
-    if (refresh) {
-      const Eigen::MatrixXd s = unpack_gram(grams.row(e).transpose(), nb, nc);
-      spu = s.topRightCorner(nc, npp);
-      k[static_cast<size_t>(e)] = s.bottomRightCorner(npp, npp) - spu.transpose() * gram.solve(spu);
-    }
+    const Eigen::MatrixXd s = unpack_gram(grams.row(e).transpose(), nb, nc);
+    const Eigen::MatrixXd spu = s.topRightCorner(nc, npp);
+    const Eigen::MatrixXd k = s.bottomRightCorner(npp, npp) - spu.transpose() * gram.solve(spu);
     const Eigen::MatrixXd t = residue_map(poles, r, npp);
-    out.jtj.topLeftCorner(npp, npp).noalias() += t.transpose() * k[static_cast<size_t>(e)] * t;
+    out.jtj.topLeftCorner(npp, npp).noalias() += t.transpose() * k * t;
     out.jtr.head(npp).noalias() += t.transpose() * grad.col(e);
     if (delay) {
       const Eigen::VectorXd z = gram.solve(av.col(e));
@@ -223,8 +208,7 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
   Eigen::VectorXd wa, wb;
   if (separable_weights(data, wa, wb)) return normal_equations_separable(data, poles, delay, wa, wb);
   const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
-  std::vector<Eigen::MatrixXd> k;
-  return normal_equations_general(data, poles, delay, phi, solve_entries(data, phi), k, true);
+  return normal_equations_general(data, poles, delay, phi, solve_entries(data, phi));
 }
 
 }  // namespace
@@ -234,26 +218,17 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   const std::clock_t t0 = std::clock();
   double mu = 1e-3;
   FitData data = undelayed(data_in, delay_s);
-  // General weights: the exact least squares of the accepted trial are
-  // kept, and K_e of J^T J (normal_equations_general) is reused while the
-  // poles stay within kFrozenMove of their half-power bandwidth |Re p| of
-  // where it was computed, and refreshed after a rejected step.
+  // General weights: the least squares of the accepted trial are kept.
   Eigen::VectorXd wa, wb;
   const bool separable = separable_weights(data, wa, wb);
-  std::vector<Eigen::MatrixXd> k_frozen;
-  std::vector<cd> k_poles;
   EntrySystems current;
-  auto build = [&](const std::vector<cd>& p, bool refresh) {
+  auto build = [&](const std::vector<cd>& p) {
     if (separable) return normal_equations_separable(data, p, fit_delay, wa, wb);
     const Eigen::MatrixXcd phi = pole_basis(p, data.w, true);
     if (current.gram.empty()) current = solve_entries(data, phi);
-    refresh = refresh || k_poles.size() != p.size();
-    for (size_t q = 0; q < p.size() && !refresh; ++q) refresh = std::abs(p[q] - k_poles[q]) > kFrozenMove * std::abs(k_poles[q].real());
-    if (refresh) k_poles = p;
-    return normal_equations_general(data, p, fit_delay, phi, current, k_frozen, refresh);
+    return normal_equations_general(data, p, fit_delay, phi, current);
   };
-  auto fresh = [&]() { return k_poles == poles; };
-  Normal ne = build(poles, true);
+  Normal ne = build(poles);
 
   double cost = ne.linear.cost;
   const int npp = parameter_count(poles);
@@ -264,14 +239,10 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   // flat valley of poorly determined poles with no gain in accuracy.)
   const double n_real = 2.0 * data.lines() * data.entries();
   out.stop_reason = "iteration limit";
-  int it = 0, trials = 0, refreshes = 0;
+  int it = 0, trials = 0;
   for (; it < max_iterations; ++it) {
     bool accepted = false;
     for (int tries = 0; tries < 12 && !accepted; ++tries) {
-      if (tries > 0 && !separable && !fresh()) {
-        ne = build(poles, true);  // a rejected step with a frozen K: refresh it first
-        ++refreshes;
-      }
       Eigen::MatrixXd lhs = ne.jtj;
       lhs.diagonal() += mu * ne.jtj.diagonal().cwiseMax(1e-300);
       const Eigen::VectorXd step = -lhs.ldlt().solve(ne.jtr);
@@ -297,7 +268,7 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
           mu = std::max(mu / 3.0, 1e-12);
           accepted = true;
           current = std::move(sys);
-          ne = build(poles, false);
+          ne = build(poles);
           if (chi2_drop < 1e-3) {
             out.converged = true;
             out.stop_reason = "chi^2 decrease below 1e-3";
@@ -320,13 +291,12 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   out.iterations = it;
   out.poles = poles;
   out.delay_s = delay_s;
-  if (!separable && !fresh()) ne = build(poles, true);  // exact J^T J for the covariance
   out.linear = ne.linear;
   // Marginal covariance of the poles (the delay's uncertainty included).
   const Eigen::MatrixXd cov = ne.jtj.ldlt().solve(Eigen::MatrixXd::Identity(ne.jtj.rows(), ne.jtj.cols()));
   out.pole_covariance = cov.topLeftCorner(npp, npp);
   if (fit_delay) out.delay_sd_s = std::sqrt(std::max(0.0, 0.5 * cov(npp, npp)));
-  if (std::getenv("AMBDIAG_FIT_TRACE")) std::fprintf(stderr, "TRACE ml_refine poles=%zu it=%d trials=%d refreshes=%d delay=%d cost=%.6f %s %.3f s\n", poles.size(), it, trials, refreshes, fit_delay ? 1 : 0, ne.linear.cost, out.stop_reason.c_str(), static_cast<double>(std::clock() - t0) / CLOCKS_PER_SEC);
+  if (std::getenv("AMBDIAG_FIT_TRACE")) std::fprintf(stderr, "TRACE ml_refine poles=%zu it=%d trials=%d delay=%d cost=%.6f %s %.3f s\n", poles.size(), it, trials, fit_delay ? 1 : 0, ne.linear.cost, out.stop_reason.c_str(), static_cast<double>(std::clock() - t0) / CLOCKS_PER_SEC);
   return out;
 }
 
