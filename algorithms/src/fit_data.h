@@ -30,10 +30,6 @@ int basis_columns(const std::vector<cd>& poles);
 // c1 + j c2); for a real pole, 1/(s-p); optionally a last column of ones.
 Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w, bool direct);
 
-// Weighted least-squares system of entry e for a basis phi, stacked as real
-// and imaginary rows: a = [Re(w phi); Im(w phi)], y = [Re(w h); Im(w h)].
-void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y);
-
 // Least squares through the normal equations of a tall real matrix A:
 // (A^T A) x = b, Cholesky of the column-scaled Gram matrix (its condition is
 // that of A squared; the scaled partial-fraction basis keeps it far from

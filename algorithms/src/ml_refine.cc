@@ -6,9 +6,6 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <limits>
-#include <ctime>
-#include <cstdio>
-#include <cstdlib>
 
 #include "fit_data.h"
 
@@ -215,7 +212,6 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
 
 MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iterations, bool fit_delay, double delay_s) {
   MlSolution out;
-  const std::clock_t t0 = std::clock();
   double mu = 1e-3;
   FitData data = undelayed(data_in, delay_s);
   // General weights: the least squares of the accepted trial are kept.
@@ -239,7 +235,7 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   // flat valley of poorly determined poles with no gain in accuracy.)
   const double n_real = 2.0 * data.lines() * data.entries();
   out.stop_reason = "iteration limit";
-  int it = 0, trials = 0;
+  int it = 0;
   for (; it < max_iterations; ++it) {
     bool accepted = false;
     for (int tries = 0; tries < 12 && !accepted; ++tries) {
@@ -249,7 +245,6 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
       const std::vector<cd> trial = apply_step(poles, step);
       const double trial_delay = fit_delay ? delay_s + step(npp) : delay_s;
       if (stable(trial) && step.allFinite()) {
-        ++trials;
         FitData trial_data = fit_delay ? undelayed(data_in, trial_delay) : data;
         EntrySystems sys;
         double trial_cost = 0.0;
@@ -296,7 +291,6 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   const Eigen::MatrixXd cov = ne.jtj.ldlt().solve(Eigen::MatrixXd::Identity(ne.jtj.rows(), ne.jtj.cols()));
   out.pole_covariance = cov.topLeftCorner(npp, npp);
   if (fit_delay) out.delay_sd_s = std::sqrt(std::max(0.0, 0.5 * cov(npp, npp)));
-  if (std::getenv("AMBDIAG_FIT_TRACE")) std::fprintf(stderr, "TRACE ml_refine poles=%zu it=%d trials=%d delay=%d cost=%.6f %s %.3f s\n", poles.size(), it, trials, fit_delay ? 1 : 0, ne.linear.cost, out.stop_reason.c_str(), static_cast<double>(std::clock() - t0) / CLOCKS_PER_SEC);
   return out;
 }
 

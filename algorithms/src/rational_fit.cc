@@ -5,9 +5,6 @@
 #include <cmath>
 #include <map>
 #include <numbers>
-#include <ctime>
-#include <cstdio>
-#include <cstdlib>
 
 #include "ambdiag/core/error.h"
 #include "fit_data.h"
@@ -228,8 +225,6 @@ std::vector<bool> stable_against(const std::vector<cd>& now, const std::vector<c
 // the previous one plus one new pair where the model misfits most; the
 // search stops 4 orders after the best criterion. Returns the best poles.
 std::vector<cd> search_order(const FitData& data, const RationalFitOptions& opt, RationalFitResult& out) {
-  const std::clock_t t0 = std::clock();
-  struct T { std::clock_t t; RationalFitResult& o; ~T() { if (std::getenv("AMBDIAG_FIT_TRACE")) std::fprintf(stderr, "TRACE search rows=%zu sel=%d %.3f s\n", o.stabilization.size(), o.selected_modes, static_cast<double>(std::clock() - t) / CLOCKS_PER_SEC); } } tr{t0, out};
   const double w_min = data.w.minCoeff(), w_max = data.w.maxCoeff();
   const FitData small = compress(data, 6, 400);
   const int n_small = 2 * small.lines() * small.entries();
@@ -595,9 +590,7 @@ RationalFitResult fit_rational(const FrfData& frf, const RationalFitOptions& opt
       ++out.selected_modes;
     }
   }
-  const std::clock_t tp = std::clock();
   if (opt.modes == 0 && ml_iterations > 0) refit_close_pairs(frf, prep.entries, detail::undelayed(data, ml.delay_s), std::max(1.0, chi2(ml)), ml);
-  if (std::getenv("AMBDIAG_FIT_TRACE")) std::fprintf(stderr, "TRACE pairs %.3f s\n", static_cast<double>(std::clock() - tp) / CLOCKS_PER_SEC);
   out.model.poles = ml.poles;
   out.model.residues = ml.linear.residues;
   out.model.direct = ml.linear.direct;
