@@ -1,6 +1,7 @@
 // Identification benchmarks (docs/benchmarks.md, "Identification"): the
 // rational fit with automatic order of the reference pump's 5 x 5 FRF at
-// 1000 lines, of ident_7mode (SISO, 2000 lines), and of the real amrotor rig
+// 1000 lines (a file with constant sigma per entry, and the FRF estimated
+// from its run, sigma per line and entry), of ident_7mode (SISO, 2000 lines), and of the real amrotor rig
 // (FRF estimated from its chirp run, 8 accelerances); the FRF estimation of
 // that run too.
 //
@@ -44,6 +45,15 @@ void BM_FitPump5x5AutoOrder(benchmark::State& state) {
   fit(state, f);
 }
 BENCHMARK(BM_FitPump5x5AutoOrder)->Unit(benchmark::kMillisecond);
+
+// The ordinary use: the pump's FRF estimated from its multisine run (sigma
+// per line and entry, not separable: the general path), estimated once in
+// the set-up with the library call.
+void BM_FitPumpEstimatedFromRunAutoOrder(benchmark::State& state) {
+  static const ambdiag::FrfData f = ambdiag::estimate_frf(ambdiag::read_run(shared("reference_pump/run_ref_1"))).frf;
+  fit(state, f);
+}
+BENCHMARK(BM_FitPumpEstimatedFromRunAutoOrder)->Unit(benchmark::kMillisecond);
 
 void BM_FitSevenModeAutoOrder(benchmark::State& state) {
   static const ambdiag::FrfData f = ambdiag::read_frf_csv(shared("ident_7mode/frf.csv"));

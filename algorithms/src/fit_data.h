@@ -4,6 +4,7 @@
 
 #include <complex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -29,10 +30,6 @@ int basis_columns(const std::vector<cd>& poles);
 // c1 + j c2); for a real pole, 1/(s-p); optionally a last column of ones.
 Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w, bool direct);
 
-// Weighted least-squares system of entry e for a basis phi, stacked as real
-// and imaginary rows: a = [Re(w phi); Im(w phi)], y = [Re(w h); Im(w h)].
-void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y);
-
 // Least squares through the normal equations of a tall real matrix A:
 // (A^T A) x = b, Cholesky of the column-scaled Gram matrix (its condition is
 // that of A squared; the scaled partial-fraction basis keeps it far from
@@ -41,9 +38,12 @@ void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eig
 class GramSolver {
  public:
   explicit GramSolver(const Eigen::MatrixXd& a);
+  struct FromGram {};
+  GramSolver(FromGram, const Eigen::MatrixXd& gram);  // from A^T A itself
   Eigen::MatrixXd solve(const Eigen::MatrixXd& b) const;
 
  private:
+  void factor(const Eigen::MatrixXd& gram);
   Eigen::VectorXd scale_;
   Eigen::MatrixXd gram_;
   Eigen::MatrixXd chol_;
@@ -76,6 +76,33 @@ bool separable_weights(const FitData& data, Eigen::VectorXd& a, Eigen::VectorXd&
 
 // Real stacking [Re(diag(a) m); Im(diag(a) m)] of a lines x columns matrix.
 Eigen::MatrixXd stack_lines(const Eigen::MatrixXcd& m, const Eigen::VectorXd& a);
+
+// Weighted Gram matrices of one complex basis x (lines x n) for every
+// column of w2 (lines x entries, squared weights): row e holds the upper
+// triangle (column by column) of Re(x^H diag(w2(:, e)) x), which is A_e^T A_e
+// of the real stacking A_e = [Re(w_e x); Im(w_e x)]. Computed as one blocked
+// product of w2^T with the per-line products Re(conj x_li x_lj): real and
+// imaginary rows merged per line, half the flops of stacking them per entry.
+// With first_col > 0 only the columns j >= first_col of the triangle (the
+// leading block is left out; unpacked as zeros).
+Eigen::MatrixXd entry_grams(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, Eigen::Index first_col = 0);
+Eigen::MatrixXd unpack_gram(const Eigen::Ref<const Eigen::VectorXd>& packed, Eigen::Index n, Eigen::Index first_col = 0);
+// The same for a list of column pairs (i, j): E x pairs.
+Eigen::MatrixXd entry_gram_pairs(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w2, const std::vector<std::pair<int, int>>& pairs);
+// The imaginary counterpart, sum_l w(l, e) Im(conj x_li x_lj) for i < j
+// (antisymmetric; strict upper triangle column by column), w any weights.
+Eigen::MatrixXd entry_grams_imag(const Eigen::MatrixXcd& x, const Eigen::MatrixXd& w);
+
+// Weighted least squares of every entry for a common basis phi (general
+// weights): per-entry Gram factorizations, coefficients (columns x
+// entries), weighted residuals weight .* (phi coef - h) and their cost.
+struct EntrySystems {
+  std::vector<GramSolver> gram;
+  Eigen::MatrixXd coef;
+  Eigen::MatrixXcd wresid;
+  double cost = 0.0;
+};
+EntrySystems solve_entries(const FitData& data, const Eigen::MatrixXcd& phi);
 
 struct LinearSolution {
   Eigen::MatrixXcd residues;  // entries x poles

@@ -118,68 +118,94 @@ Normal normal_equations_separable(const FitData& data, const std::vector<cd>& po
   return out;
 }
 
-// `data` is already undelayed; with `delay` one more column, d resid / d tau
-// = -d y / d tau = -weighted(j w h).
-Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool delay = false) {
-  Eigen::VectorXd wa, wb;
-  if (separable_weights(data, wa, wb)) return normal_equations_separable(data, poles, delay, wa, wb);
+// Block-diagonal map T_e from the pole derivatives of the basis functions to
+// those of entry e's model (see normal_equations_separable).
+Eigen::MatrixXd residue_map(const std::vector<cd>& poles, const std::vector<cd>& r, int npp) {
+  Eigen::MatrixXd t = Eigen::MatrixXd::Zero(npp, npp);
+  int col = 0;
+  for (size_t q = 0; q < poles.size(); ++q) {
+    t(col, col) = r[q].real();
+    if (poles[q].imag() == 0.0) {
+      ++col;
+    } else {
+      t(col + 1, col) = r[q].imag();
+      t(col, col + 1) = -r[q].imag();
+      t(col + 1, col + 1) = r[q].real();
+      col += 2;
+    }
+  }
+  return t;
+}
+
+// General weights (one per line and entry). The residual, the residues and
+// the gradient J^T r = D^T r (A^T r = 0) come from the per-entry least
+// squares `sys` (of the accepted LM trial, not solved again). Kaufman's J^T
+// J of entry e is T_e^T K_e T_e, K_e = S_uu - S_pu^T G_e^-1 S_pu, from the
+// weighted Gram matrices of the pole basis phi (G_e, in `sys`) and of its
+// derivatives u (S_pu, S_uu; entry_grams: one blocked product for all
+// entries, half the flops of the stacked per-entry products).
+Normal normal_equations_general(const FitData& data, const std::vector<cd>& poles, bool delay, const Eigen::MatrixXcd& phi,
+                                const EntrySystems& sys) {
   const int L = data.lines(), E = data.entries();
   const int npp = parameter_count(poles);
   const int np = npp + (delay ? 1 : 0);
-  const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
-  const int nc = static_cast<int>(phi.cols());
+  const int nc = static_cast<int>(phi.cols()), nb = nc + npp;
+  const Eigen::MatrixXcd u = derivative_basis(poles, data.w);
+  const Eigen::MatrixXd w2 = data.weight.cwiseAbs2();
+  Eigen::MatrixXcd basis(L, nb);
+  basis << phi, u;
+  const Eigen::MatrixXd grams = entry_grams(basis, w2, nc);  // S_pu and S_uu; G_e is in sys
+  const Eigen::MatrixXd ur = u.real(), ui = u.imag();
+  const Eigen::MatrixXd grad = ur.transpose() * data.weight.cwiseProduct(sys.wresid.real()) + ui.transpose() * data.weight.cwiseProduct(sys.wresid.imag());
+  // Delay column v_e = -w_e .* (j w h_e), exact (data, not a common basis).
+  Eigen::MatrixXd av, dv;
+  Eigen::VectorXd vv, vr;
+  if (delay) {
+    Eigen::MatrixXcd w2jwh(L, E);
+    for (int l = 0; l < L; ++l) w2jwh.row(l) = cd(0.0, data.w(l)) * data.h.row(l);
+    const Eigen::MatrixXcd wjwh = data.weight.cast<cd>().cwiseProduct(w2jwh);
+    vv = wjwh.colwise().squaredNorm().transpose();
+    vr = -(wjwh.conjugate().cwiseProduct(sys.wresid)).colwise().sum().real().transpose();
+    w2jwh = w2.cast<cd>().cwiseProduct(w2jwh);
+    av = -(phi.adjoint() * w2jwh).real();
+    dv = -(u.adjoint() * w2jwh).real();
+  }
   Normal out;
   out.jtj = Eigen::MatrixXd::Zero(np, np);
   out.jtr = Eigen::VectorXd::Zero(np);
   out.linear.residues.resize(E, static_cast<Eigen::Index>(poles.size()));
   out.linear.direct.resize(E);
-
-  // Derivative basis (unweighted, stacked) and, for the delay, j w h.
-  const Eigen::MatrixXd psi = stack_lines(derivative_basis(poles, data.w), Eigen::VectorXd::Ones(L));
-  Eigen::MatrixXd jwh;
-  if (delay) {
-    Eigen::MatrixXcd m(L, E);
-    for (int l = 0; l < L; ++l) m.row(l) = cd(0.0, data.w(l)) * data.h.row(l);
-    jwh = stack_lines(m, Eigen::VectorXd::Ones(L));
-  }
-  Eigen::MatrixXd a, dmat(2 * L, np);
-  Eigen::VectorXd y;
+  out.linear.cost = sys.cost;
   for (int e = 0; e < E; ++e) {
-    stack_weighted(data, phi, e, a, y);
-    const GramSolver gram(a);
-    const Eigen::VectorXd c = gram.solve(a.transpose() * y);
-    const Eigen::VectorXd resid = a * c - y;
-    out.linear.cost += resid.squaredNorm();
-    const auto r = residues_from_coefficients(poles, c);
-    for (size_t k = 0; k < r.size(); ++k) out.linear.residues(e, static_cast<Eigen::Index>(k)) = r[k];
-    out.linear.direct(e) = c(nc - 1);
-
-    // Derivatives of the weighted model with respect to Re p and Im p
-    // (see derivative_basis), column by column.
-    Eigen::VectorXd w2(2 * L);
-    w2 << data.weight.col(e), data.weight.col(e);
-    int col = 0;
-    for (size_t k = 0; k < poles.size(); ++k) {
-      const double c1 = r[k].real(), c2 = r[k].imag();
-      if (poles[k].imag() == 0.0) {
-        dmat.col(col) = c1 * w2.cwiseProduct(psi.col(col));
-        ++col;
-      } else {
-        dmat.col(col) = w2.cwiseProduct(c1 * psi.col(col) + c2 * psi.col(col + 1));
-        dmat.col(col + 1) = w2.cwiseProduct(c1 * psi.col(col + 1) - c2 * psi.col(col));
-        col += 2;
-      }
+    const auto r = residues_from_coefficients(poles, sys.coef.col(e));
+    for (size_t q = 0; q < r.size(); ++q) out.linear.residues(e, static_cast<Eigen::Index>(q)) = r[q];
+    out.linear.direct(e) = sys.coef(nc - 1, e);
+    const GramSolver& gram = sys.gram[static_cast<size_t>(e)];
+    const Eigen::MatrixXd s = unpack_gram(grams.row(e).transpose(), nb, nc);
+    const Eigen::MatrixXd spu = s.topRightCorner(nc, npp);
+    const Eigen::MatrixXd k = s.bottomRightCorner(npp, npp) - spu.transpose() * gram.solve(spu);
+    const Eigen::MatrixXd t = residue_map(poles, r, npp);
+    out.jtj.topLeftCorner(npp, npp).noalias() += t.transpose() * k * t;
+    out.jtr.head(npp).noalias() += t.transpose() * grad.col(e);
+    if (delay) {
+      const Eigen::VectorXd z = gram.solve(av.col(e));
+      const Eigen::VectorXd pd = t.transpose() * (dv.col(e) - spu.transpose() * z);
+      out.jtj.block(0, npp, npp, 1) += pd;
+      out.jtj.block(npp, 0, 1, npp) += pd.transpose();
+      out.jtj(npp, npp) += vv(e) - av.col(e).dot(z);
+      out.jtr(npp) += vr(e);
     }
-    if (delay) dmat.col(npp) = -w2.cwiseProduct(jwh.col(e));
-    // Kaufman: J = P_perp D, P_perp = I - A (A^T A)^-1 A^T, so
-    // J^T J = D^T D - (A^T D)^T (A^T A)^-1 (A^T D).
-    const Eigen::MatrixXd atd = a.transpose() * dmat;
-    Eigen::MatrixXd dtd = Eigen::MatrixXd::Zero(np, np);
-    dtd.selfadjointView<Eigen::Lower>().rankUpdate(dmat.transpose());
-    out.jtj.noalias() += Eigen::MatrixXd(dtd.selfadjointView<Eigen::Lower>()) - atd.transpose() * gram.solve(atd);
-    out.jtr.noalias() += dmat.transpose() * resid;  // A^T resid = 0 at the LS solution
   }
   return out;
+}
+
+// `data` is already undelayed; with `delay` one more column, d resid / d tau
+// = -d y / d tau = -weighted(j w h). Exact J^T J.
+Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool delay = false) {
+  Eigen::VectorXd wa, wb;
+  if (separable_weights(data, wa, wb)) return normal_equations_separable(data, poles, delay, wa, wb);
+  const Eigen::MatrixXcd phi = pole_basis(poles, data.w, true);
+  return normal_equations_general(data, poles, delay, phi, solve_entries(data, phi));
 }
 
 }  // namespace
@@ -188,7 +214,18 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
   MlSolution out;
   double mu = 1e-3;
   FitData data = undelayed(data_in, delay_s);
-  Normal ne = normal_equations(data, poles, fit_delay);
+  // General weights: the least squares of the accepted trial are kept.
+  Eigen::VectorXd wa, wb;
+  const bool separable = separable_weights(data, wa, wb);
+  EntrySystems current;
+  auto build = [&](const std::vector<cd>& p) {
+    if (separable) return normal_equations_separable(data, p, fit_delay, wa, wb);
+    const Eigen::MatrixXcd phi = pole_basis(p, data.w, true);
+    if (current.gram.empty()) current = solve_entries(data, phi);
+    return normal_equations_general(data, p, fit_delay, phi, current);
+  };
+  Normal ne = build(poles);
+
   double cost = ne.linear.cost;
   const int npp = parameter_count(poles);
   // Converged when an accepted step lowers chi^2 (in units of the noise,
@@ -209,16 +246,24 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
       const double trial_delay = fit_delay ? delay_s + step(npp) : delay_s;
       if (stable(trial) && step.allFinite()) {
         FitData trial_data = fit_delay ? undelayed(data_in, trial_delay) : data;
-        const LinearSolution lin = solve_residues(trial_data, trial);
-        if (lin.cost < cost) {
-          const double chi2_drop = (cost - lin.cost) * n_real / std::max(cost, 1e-300);
+        EntrySystems sys;
+        double trial_cost = 0.0;
+        if (separable) {
+          trial_cost = solve_residues(trial_data, trial).cost;
+        } else {
+          sys = solve_entries(trial_data, pole_basis(trial, trial_data.w, true));
+          trial_cost = sys.cost;
+        }
+        if (trial_cost < cost) {
+          const double chi2_drop = (cost - trial_cost) * n_real / std::max(cost, 1e-300);
           poles = trial;
           delay_s = trial_delay;
           data = std::move(trial_data);
-          cost = lin.cost;
+          cost = trial_cost;
           mu = std::max(mu / 3.0, 1e-12);
           accepted = true;
-          ne = normal_equations(data, poles, fit_delay);
+          current = std::move(sys);
+          ne = build(poles);
           if (chi2_drop < 1e-3) {
             out.converged = true;
             out.stop_reason = "chi^2 decrease below 1e-3";

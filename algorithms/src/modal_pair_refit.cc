@@ -33,6 +33,10 @@ struct Problem {
   std::vector<Eigen::MatrixXd> a;
   Eigen::MatrixXd y_perp;        // 2L x entries, projected (separable: without b(e))
   Eigen::VectorXd c;             // |y_perp|^2 per entry (weighted)
+  // General weights: the other poles' basis and its per-entry least squares
+  // (Gram factorizations; weighted residual = -projected weighted data).
+  Eigen::MatrixXcd phi;
+  EntrySystems sys;
 
   Eigen::MatrixXd project(size_t k, const Eigen::MatrixXd& v) const { return v - a[k] * gram[k].solve(a[k].transpose() * v); }
 };
@@ -68,10 +72,20 @@ Blocks blocks(const Problem& pr, cd q0, cd q1) {
     }
     return out;
   }
+  // General weights: Z_e^T Z_e = S_xx - S_px^T G_e^-1 S_px from the
+  // weighted Gram matrices of [phi ub] (entry_grams), Z_e^T y_e =
+  // Re(ub^H w_e y_perp_e), without forming Z_e.
+  const int nc = static_cast<int>(pr.phi.cols());
+  Eigen::MatrixXcd basis(L, nc + 8);
+  basis << pr.phi, ub;
+  const Eigen::MatrixXd grams = entry_grams(basis, d.weight.cwiseAbs2(), nc);
+  const Eigen::MatrixXd wy_r = -d.weight.cwiseProduct(pr.sys.wresid.real()), wy_i = -d.weight.cwiseProduct(pr.sys.wresid.imag());
+  const Eigen::MatrixXd gy = ub.real().transpose() * wy_r + ub.imag().transpose() * wy_i;
   for (int e = 0; e < E; ++e) {
-    const Eigen::MatrixXd z = pr.project(static_cast<size_t>(e), stack_lines(ub, d.weight.col(e)));
-    out.k.push_back(z.transpose() * z);
-    out.g.push_back(z.transpose() * pr.y_perp.col(e));
+    const Eigen::MatrixXd sg = unpack_gram(grams.row(e).transpose(), nc + 8, nc);
+    const Eigen::MatrixXd spx = sg.topRightCorner(nc, 8);
+    out.k.push_back(sg.bottomRightCorner(8, 8) - spx.transpose() * pr.sys.gram[static_cast<size_t>(e)].solve(spx));
+    out.g.push_back(gy.col(e));
   }
   return out;
 }
@@ -146,7 +160,7 @@ PairRefit refit_pair_rank_one(const FitData& data, const std::vector<cd>& poles,
   for (size_t k = 0; k < poles.size(); ++k)
     if (k != k1 && k != k2) others.push_back(poles[k]);
   const Eigen::MatrixXcd phi = pole_basis(others, data.w, true);
-  Problem pr{data, modal, false, {}, {}, {}, {}, {}, {}};
+  Problem pr{data, modal, false, {}, {}, {}, {}, {}, {}, {}, {}};
   pr.separable = separable_weights(data, pr.wa, pr.wb);
   pr.y_perp.resize(2 * L, E);
   pr.c.resize(E);
@@ -156,15 +170,9 @@ PairRefit refit_pair_rank_one(const FitData& data, const std::vector<cd>& poles,
     pr.y_perp = pr.project(0, stack_lines(data.h, pr.wa));
     for (int e = 0; e < E; ++e) pr.c(e) = pr.wb(e) * pr.wb(e) * pr.y_perp.col(e).squaredNorm();
   } else {
-    for (int e = 0; e < E; ++e) {
-      Eigen::MatrixXd a;
-      Eigen::VectorXd y;
-      stack_weighted(data, phi, e, a, y);
-      pr.gram.emplace_back(a);
-      pr.a.push_back(std::move(a));
-      pr.y_perp.col(e) = pr.project(static_cast<size_t>(e), y);
-      pr.c(e) = pr.y_perp.col(e).squaredNorm();
-    }
+    pr.phi = phi;
+    pr.sys = solve_entries(data, phi);
+    pr.c = pr.sys.wresid.colwise().squaredNorm().transpose();
   }
   // Start: the best rank-one approximation of each pole's free residue
   // matrix (entries not fitted count as 0), split evenly between psi and l.

@@ -6,6 +6,18 @@
 
 namespace ambdiag::detail {
 
+namespace {
+
+// 1 / z without the library's complex division (which guards against
+// overflow and infinities that a nonzero s - p never reaches): a third of
+// the fit's basis evaluation time went there.
+inline cd inverse(cd z) {
+  const double n = z.real() * z.real() + z.imag() * z.imag();
+  return cd(z.real() / n, -z.imag() / n);
+}
+
+}  // namespace
+
 int basis_columns(const std::vector<cd>& poles) {
   int n = 0;
   for (const cd& p : poles) n += p.imag() == 0.0 ? 1 : 2;
@@ -21,9 +33,9 @@ Eigen::MatrixXcd pole_basis(const std::vector<cd>& poles, const Eigen::VectorXd&
     int c = 0;
     for (const cd& p : poles) {
       if (p.imag() == 0.0) {
-        phi(l, c++) = 1.0 / (s - p);
+        phi(l, c++) = inverse(s - p);
       } else {
-        const cd a = 1.0 / (s - p), b = 1.0 / (s - std::conj(p));
+        const cd a = inverse(s - p), b = inverse(s - std::conj(p));
         phi(l, c++) = a + b;
         phi(l, c++) = j * a - j * b;
       }
@@ -60,11 +72,18 @@ std::vector<cd> starting_poles(int pairs, double w_min, double w_max) {
 }
 
 GramSolver::GramSolver(const Eigen::MatrixXd& a) {
-  scale_ = a.colwise().norm().transpose().cwiseMax(1e-300).cwiseInverse();
   // A^T A as a symmetric rank update: half the flops of a general product.
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
   g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
-  gram_ = scale_.asDiagonal() * Eigen::MatrixXd(g.selfadjointView<Eigen::Lower>()) * scale_.asDiagonal();
+  factor(Eigen::MatrixXd(g.selfadjointView<Eigen::Lower>()));
+}
+
+GramSolver::GramSolver(FromGram, const Eigen::MatrixXd& gram) { factor(gram); }
+
+void GramSolver::factor(const Eigen::MatrixXd& g) {
+  // Column scales: the column norms of A, sqrt of the Gram diagonal.
+  scale_ = g.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseMax(1e-300).cwiseInverse();
+  gram_ = scale_.asDiagonal() * g * scale_.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(gram_);
   ok_ = llt.info() == Eigen::Success;
   if (ok_) chol_ = llt.matrixL();
@@ -82,11 +101,6 @@ Eigen::MatrixXd GramSolver::solve(const Eigen::MatrixXd& b) const {
   return scale_.asDiagonal() * x;
 }
 
-void stack_weighted(const FitData& data, const Eigen::MatrixXcd& phi, int e, Eigen::MatrixXd& a, Eigen::VectorXd& y) {
-  // Column-wise (contiguous) rather than row by row into column-major storage.
-  a = stack_lines(phi, data.weight.col(e));
-  y = stack_lines(data.h.col(e), data.weight.col(e));
-}
 
 Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::VectorXd& w) {
   Eigen::MatrixXcd u(w.size(), basis_columns(poles));
@@ -95,11 +109,11 @@ Eigen::MatrixXcd derivative_basis(const std::vector<cd>& poles, const Eigen::Vec
     const cd s(0.0, w(l));
     int col = 0;
     for (const cd& p : poles) {
-      const cd g = 1.0 / ((s - p) * (s - p));
+      const cd g = inverse((s - p) * (s - p));
       if (p.imag() == 0.0) {
         u(l, col++) = g;
       } else {
-        const cd gc = 1.0 / ((s - std::conj(p)) * (s - std::conj(p)));
+        const cd gc = inverse((s - std::conj(p)) * (s - std::conj(p)));
         u(l, col++) = g + gc;
         u(l, col++) = j * (g - gc);
       }
@@ -147,15 +161,12 @@ LinearSolution solve_residues(const FitData& data, const std::vector<cd>& poles)
     }
     return out;
   }
-  Eigen::MatrixXd a;
-  Eigen::VectorXd b;
+  const EntrySystems sys = solve_entries(data, phi);
+  out.cost = sys.cost;
   for (int e = 0; e < data.entries(); ++e) {
-    stack_weighted(data, phi, e, a, b);
-    const Eigen::VectorXd c = GramSolver(a).solve(a.transpose() * b);
-    out.cost += (a * c - b).squaredNorm();
-    const auto r = residues_from_coefficients(poles, c);
+    const auto r = residues_from_coefficients(poles, sys.coef.col(e));
     for (size_t k = 0; k < r.size(); ++k) out.residues(e, static_cast<Eigen::Index>(k)) = r[k];
-    out.direct(e) = c(n - 1);
+    out.direct(e) = sys.coef(n - 1, e);
   }
   return out;
 }

@@ -52,12 +52,11 @@ std::vector<cd> sigma_zeros(const std::vector<cd>& poles, const Eigen::VectorXd&
 
 // The block R22 of the QR factorisation of m = [A B] (A: the residue
 // columns, eliminated): any S with S^T S = B^T B - B^T A (A^T A)^-1 A^T B
-// serves, so it is the Cholesky factor of that Schur complement, from the
-// Gram matrix of m (one blocked product, several times faster than a
-// Householder QR of m); a Householder QR where the complement is not
-// numerically positive definite.
-Eigen::MatrixXd sigma_block(const Eigen::MatrixXd& m, int n1) {
-  const Eigen::MatrixXd g = m.transpose() * m;
+// serves, so it is the Cholesky factor of that Schur complement of the Gram
+// matrix g = m^T m; a Householder QR of m (built by `make_m`) where the
+// complement is not numerically positive definite.
+template <class MakeM>
+Eigen::MatrixXd sigma_block(const Eigen::MatrixXd& g, int n1, MakeM make_m) {
   Eigen::LLT<Eigen::MatrixXd> aa(g.topLeftCorner(n1, n1));
   if (aa.info() == Eigen::Success) {
     const Eigen::MatrixXd x = aa.matrixL().solve(g.topRightCorner(n1, n1));
@@ -65,7 +64,7 @@ Eigen::MatrixXd sigma_block(const Eigen::MatrixXd& m, int n1) {
     Eigen::LLT<Eigen::MatrixXd> s(schur);
     if (s.info() == Eigen::Success) return s.matrixU();
   }
-  Eigen::HouseholderQR<Eigen::MatrixXd> qr(m);
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(make_m());
   return qr.matrixQR().block(n1, n1, n1, n1).triangularView<Eigen::Upper>();
 }
 
@@ -81,27 +80,63 @@ std::vector<cd> vector_fit(const FitData& data, std::vector<cd> poles, int itera
     for (int c = 0; c < n1; ++c) col_scale(c) = 1.0 / std::max(phi.col(c).norm(), 1e-300);
 
     Eigen::MatrixXd stacked(E * n1 + 1, n1);
-    Eigen::MatrixXd m(2 * L, 2 * n1);
+    // Gram matrix of entry e's m = [A B], A = w phi, B = -w h phi / |h|_rms
+    // (columns scaled), from per-line products of the basis weighted per
+    // entry (entry_grams): A^T A and B^T B from sum w^2 Re(conj phi_i phi_j)
+    // and w^2 |h|^2 times the same, A^T B from w^2 Re h and w^2 Im h times
+    // Re and Im of conj phi_i phi_j. A quarter of the flops of m^T m.
+    Eigen::VectorXd hnorm(E);
+    for (int e = 0; e < E; ++e) hnorm(e) = std::sqrt((data.weight.col(e).cwiseProduct(data.h.col(e).cwiseAbs())).squaredNorm() / L);
+    const Eigen::MatrixXd w2 = data.weight.cwiseAbs2();
+    Eigen::MatrixXd wr(L, 3 * E), wi(L, E);
+    for (int e = 0; e < E; ++e) {
+      const double hn = std::max(hnorm(e), 1e-300);
+      wr.col(e) = w2.col(e);
+      wr.col(E + e) = -w2.col(e).cwiseProduct(data.h.col(e).real()) / hn;
+      wr.col(2 * E + e) = w2.col(e).cwiseProduct(data.h.col(e).cwiseAbs2()) / (hn * hn);
+      wi.col(e) = w2.col(e).cwiseProduct(data.h.col(e).imag()) / hn;
+    }
+    const Eigen::MatrixXd gr = entry_grams(phi, wr), gi = entry_grams_imag(phi, wi);
     double total = 0.0;
     for (int e = 0; e < E; ++e) {
-      double hnorm = 0.0;
-      for (int l = 0; l < L; ++l) hnorm += std::norm(data.weight(l, e) * data.h(l, e));
-      hnorm = std::sqrt(hnorm / L);
-      total += hnorm * hnorm;
-      for (int l = 0; l < L; ++l) {
-        const double wt = data.weight(l, e);
-        const cd wh = wt * data.h(l, e);
-        for (int c = 0; c < n1; ++c) {
-          const cd a = wt * phi(l, c) * col_scale(c);
-          const cd b = -wh * phi(l, c) * col_scale(c) / std::max(hnorm, 1e-300);
-          m(l, c) = a.real();
-          m(L + l, c) = a.imag();
-          m(l, n1 + c) = b.real();
-          m(L + l, n1 + c) = b.imag();
+      total += hnorm(e) * hnorm(e);
+      const Eigen::MatrixXd aa = unpack_gram(gr.row(e).transpose(), n1), bb = unpack_gram(gr.row(2 * E + e).transpose(), n1);
+      const Eigen::MatrixXd re_h = unpack_gram(gr.row(E + e).transpose(), n1);
+      // sum w^2 Im h Im(conj phi_i phi_j), antisymmetric.
+      Eigen::MatrixXd im_h = Eigen::MatrixXd::Zero(n1, n1);
+      Eigen::Index k = 0;
+      for (int j = 1; j < n1; ++j)
+        for (int i = 0; i < j; ++i, ++k) {
+          im_h(i, j) = gi(e, k);
+          im_h(j, i) = -gi(e, k);
         }
-      }
+      // A_i^T B_j = -sum w^2 Re(conj phi_i h phi_j) / hn.
+      Eigen::MatrixXd g(2 * n1, 2 * n1);
+      g.topLeftCorner(n1, n1) = aa;
+      g.topRightCorner(n1, n1) = re_h + im_h;
+      g.bottomLeftCorner(n1, n1) = g.topRightCorner(n1, n1).transpose();
+      g.bottomRightCorner(n1, n1) = bb;
+      Eigen::VectorXd cs2(2 * n1);
+      cs2 << col_scale, col_scale;
+      g = cs2.asDiagonal() * g * cs2.asDiagonal();
+      auto make_m = [&]() {
+        Eigen::MatrixXd m(2 * L, 2 * n1);
+        for (int l = 0; l < L; ++l) {
+          const double wt = data.weight(l, e);
+          const cd wh = wt * data.h(l, e);
+          for (int c = 0; c < n1; ++c) {
+            const cd a = wt * phi(l, c) * col_scale(c);
+            const cd b = -wh * phi(l, c) * col_scale(c) / std::max(hnorm(e), 1e-300);
+            m(l, c) = a.real();
+            m(L + l, c) = a.imag();
+            m(l, n1 + c) = b.real();
+            m(L + l, n1 + c) = b.imag();
+          }
+        }
+        return m;
+      };
       // Scale back so every entry's block weighs by its own data.
-      stacked.block(e * n1, 0, n1, n1) = sigma_block(m, n1) * hnorm;
+      stacked.block(e * n1, 0, n1, n1) = sigma_block(g, n1, make_m) * hnorm(e);
     }
     // Relaxation: Re sum_l sigma(s_l) = L, weighted like the data.
     const double relax = std::sqrt(total / E);

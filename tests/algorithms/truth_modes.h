@@ -18,10 +18,10 @@
 
 namespace ambdiag::truth_modes {
 
-// Fits `frf_rel` (relative to ../shared/data) with the default options and
-// checks it against `truth_rel`; prints one table row per truth mode.
-inline RationalFitResult expect_truth_modes_identified(const std::string& frf_rel, const std::string& truth_rel) {
-  const FrfData frf = read_frf_csv(testing::data_file(frf_rel).string());
+// Fits `frf` (named `frf_rel` in the table; a file relative to
+// ../shared/data, or an estimate) with the default options and checks it
+// against `truth_rel`; prints one table row per truth mode.
+inline RationalFitResult expect_truth_modes_identified(const FrfData& frf, const std::string& frf_rel, const std::string& truth_rel) {
   std::ifstream in(testing::data_file(truth_rel));
   const nlohmann::json truth = nlohmann::json::parse(in);
   const RationalFitResult fit = fit_rational(frf);
@@ -54,6 +54,10 @@ inline RationalFitResult expect_truth_modes_identified(const std::string& frf_re
     owner = static_cast<int>(t);
   }
   return fit;
+}
+
+inline RationalFitResult expect_truth_modes_identified(const std::string& frf_rel, const std::string& truth_rel) {
+  return expect_truth_modes_identified(read_frf_csv(testing::data_file(frf_rel).string()), frf_rel, truth_rel);
 }
 
 }  // namespace ambdiag::truth_modes
