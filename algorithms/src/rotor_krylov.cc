@@ -11,6 +11,7 @@
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
 #include "frf_pole_sum.h"
+#include "pseudo_eigen.h"
 
 namespace ambdiag::detail {
 
@@ -312,18 +313,17 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
     }
     const bool last = !room || arnoldi.size() >= kMaxSize;
     const int m = arnoldi.size();
-    // T = P D P^-1 in real arithmetic (D block diagonal); the reduced solve
-    // y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the residual
-    // rows F E_last^T y share the kernel.
-    const Eigen::EigenSolver<Eigen::MatrixXd> es(arnoldi.projected());
-    if (es.info() != Eigen::Success) throw std::runtime_error("Krylov: eigenproblem of the projected matrix failed");
-    const Eigen::MatrixXd& pv = es.pseudoEigenvectors();
+    // T = P D P^-1 in real arithmetic (D block diagonal); the reduced
+    // solve y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the
+    // residual rows F E_last^T y share the kernel.
+    const PseudoEigen es = pseudo_eigen(arnoldi.projected());
+    const Eigen::MatrixXd& pv = es.vectors;
     Eigen::MatrixXd e1b = Eigen::MatrixXd::Zero(m, n_in);
     e1b.topRows(p) = beta;
     Eigen::MatrixXd left(n_out + p, m);
     left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m)) * pv;
     left.bottomRows(p).noalias() = arnoldi.coupling() * pv.bottomRows(p);
-    const PoleSum sum(es.eigenvalues(), left, pv.partialPivLu().solve(e1b));
+    const PoleSum sum(es.eigenvalues, left, pv.partialPivLu().solve(e1b));
     double worst = worst_residual(sum.evaluate(ones_sub, mu_sub), mu_sub);
     if (worst <= tol || last) {
       const double t1 = now_s();
@@ -336,7 +336,7 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
         report.converged = worst <= tol;
         report.poles = m;
         for (Eigen::Index i = 0; i < m; ++i)
-          report.poles_in_band += std::abs(sigma + 1.0 / es.eigenvalues()(i)) <= w_max ? 1 : 0;
+          report.poles_in_band += std::abs(sigma + 1.0 / es.eigenvalues(i)) <= w_max ? 1 : 0;
         report.lines_s = lines_s;
         report.setup_s = seconds_since(t0) - lines_s;
         return all.leftCols(n_h);

@@ -1,0 +1,42 @@
+// Real pseudo-eigen-decomposition of a small dense nonsymmetric matrix for
+// the pole sums of the FRF synthesis (private to the algorithms library):
+//   T P = P D,  D block diagonal with 1 x 1 blocks d and 2 x 2 blocks
+//   [u v; -v u] for the pair u +- jv (v > 0), P real,
+// the form of Eigen's EigenSolver (pseudoEigenvectors), at about half its
+// cost: T = Q H Q^T (Householder Hessenberg reduction), the eigenvalues of H
+// by Francis double-shift QR without Schur vectors, and the eigenvector of
+// H for each pole by inverse iteration on the Hessenberg form (O(m^2) per
+// pole, as LAPACK dhsein / dlaein; Wilkinson, The Algebraic Eigenvalue
+// Problem, 1965, ch. 9), P = Q X. For the pair u + jv the complex
+// eigenvector x = a + jb gives the columns a, b (T (a + jb) = (u + jv)(a + jb)).
+//
+// Eigenvalues closer than 1e-10 ||T|| to each other (e.g. the double
+// eigenvalues of an isotropic rotor at standstill), or an eigenvector that
+// inverse iteration does not resolve, send the whole matrix to Eigen's
+// EigenSolver (used_inverse_iteration false): inverse iteration from one
+// start vector cannot separate the vectors of a multiple eigenvalue.
+#pragma once
+
+#include <complex>
+
+#include <Eigen/Core>
+
+namespace ambdiag::detail {
+
+struct PseudoEigen {
+  Eigen::VectorXcd eigenvalues;  // a pair adjacent, u + jv (v > 0) first
+  Eigen::MatrixXd vectors;       // P (columns scaled to unit largest entry)
+  bool used_inverse_iteration = true;
+};
+
+// Throws std::runtime_error if the QR iteration does not converge.
+PseudoEigen pseudo_eigen(const Eigen::MatrixXd& t);
+
+// The eigenvector x of the upper Hessenberg matrix h for its eigenvalue
+// lambda (accurate to round-off), by inverse iteration with the start vector
+// of ones; false if three steps leave the backward error
+// ||(h - lambda I) x|| / (||h||_1 ||x||) above 1e-12. x is scaled to unit
+// largest entry.
+bool hessenberg_eigenvector(const Eigen::MatrixXd& h, std::complex<double> lambda, Eigen::VectorXcd& x);
+
+}  // namespace ambdiag::detail
