@@ -184,7 +184,8 @@ PseudoEigen with_eigen_solver(const Eigen::MatrixXd& t) {
   if (es.info() != Eigen::Success) throw std::runtime_error("eigenproblem of a projected matrix did not converge");
   PseudoEigen out;
   out.eigenvalues = es.eigenvalues();
-  out.vectors = es.pseudoEigenvectors();
+  out.x = es.pseudoEigenvectors();
+  out.x_lu.compute(out.x);
   out.used_inverse_iteration = false;
   return out;
 }
@@ -262,14 +263,15 @@ PseudoEigen pseudo_eigen(const Eigen::MatrixXd& t) {
   const Eigen::Index m = t.rows();
   if (t.cols() != m) throw std::logic_error("pseudo_eigen: matrix not square");
   if (m < 3) return with_eigen_solver(t);
-  const Eigen::HessenbergDecomposition<Eigen::MatrixXd> hess(t);
-  const Eigen::MatrixXd h = hess.matrixH();
   PseudoEigen out;
+  out.hess.compute(t);
+  const Eigen::MatrixXd h = out.hess.matrixH();
   Eigen::MatrixXd work = h;
   if (!hessenberg_eigenvalues(work, out.eigenvalues)) throw std::runtime_error("eigenproblem of a projected matrix did not converge");
   const double scale = std::max(t.cwiseAbs().colwise().sum().maxCoeff(), std::numeric_limits<double>::min());
   if (clustered(out.eigenvalues, scale)) return with_eigen_solver(t);
-  Eigen::MatrixXd x(m, m);
+  Eigen::MatrixXd& x = out.x;
+  x.resize(m, m);
   Eigen::VectorXcd v;
   for (Eigen::Index i = 0; i < m; ++i) {
     const bool pair = out.eigenvalues(i).imag() != 0.0;
@@ -277,8 +279,24 @@ PseudoEigen pseudo_eigen(const Eigen::MatrixXd& t) {
     x.col(i) = v.real();
     if (pair) x.col(++i) = v.imag();
   }
-  out.vectors = hess.matrixQ() * x;
+  out.x_lu.compute(x);
   return out;
+}
+
+Eigen::MatrixXd PseudoEigen::left_times(const Eigen::MatrixXd& l) const {
+  if (!used_inverse_iteration) return l * x;
+  const Eigen::MatrixXd lq = l * hess.matrixQ();
+  return lq * x;
+}
+
+Eigen::MatrixXd PseudoEigen::solve(const Eigen::MatrixXd& r) const {
+  if (!used_inverse_iteration) return x_lu.solve(r);
+  const Eigen::MatrixXd qr = hess.matrixQ().transpose() * r;
+  return x_lu.solve(qr);
+}
+
+Eigen::MatrixXd PseudoEigen::vectors() const {
+  return left_times(Eigen::MatrixXd::Identity(x.rows(), x.rows()));
 }
 
 }  // namespace ambdiag::detail

@@ -20,13 +20,25 @@
 #include <complex>
 
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
 namespace ambdiag::detail {
 
+// P is kept as Q X: the pole sums need only L P and P^-1 R for a few rows
+// of L and columns of R, and forming P would cost an m^3 product.
 struct PseudoEigen {
   Eigen::VectorXcd eigenvalues;  // a pair adjacent, u + jv (v > 0) first
-  Eigen::MatrixXd vectors;       // P (columns scaled to unit largest entry)
   bool used_inverse_iteration = true;
+
+  Eigen::MatrixXd left_times(const Eigen::MatrixXd& l) const;  // L P
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& r) const;       // P^-1 R
+  Eigen::MatrixXd vectors() const;                              // P
+
+  // P = Q X with Q from `hess` (identity when used_inverse_iteration is false).
+  Eigen::HessenbergDecomposition<Eigen::MatrixXd> hess;
+  Eigen::MatrixXd x;
+  Eigen::PartialPivLU<Eigen::MatrixXd> x_lu;
 };
 
 // Throws std::runtime_error if the QR iteration does not converge.

@@ -317,13 +317,12 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
     // solve y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the
     // residual rows F E_last^T y share the kernel.
     const PseudoEigen es = pseudo_eigen(arnoldi.projected());
-    const Eigen::MatrixXd& pv = es.vectors;
     Eigen::MatrixXd e1b = Eigen::MatrixXd::Zero(m, n_in);
     e1b.topRows(p) = beta;
-    Eigen::MatrixXd left(n_out + p, m);
-    left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m)) * pv;
-    left.bottomRows(p).noalias() = arnoldi.coupling() * pv.bottomRows(p);
-    const PoleSum sum(es.eigenvalues, left, pv.partialPivLu().solve(e1b));
+    Eigen::MatrixXd left = Eigen::MatrixXd::Zero(n_out + p, m);
+    left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m));
+    left.bottomRightCorner(p, p) = arnoldi.coupling();
+    const PoleSum sum(es.eigenvalues, es.left_times(left), es.solve(e1b));
     double worst = worst_residual(sum.evaluate(ones_sub, mu_sub), mu_sub);
     if (worst <= tol || last) {
       const double t1 = now_s();
