@@ -4,6 +4,8 @@
 #include <complex>
 #include <stdexcept>
 
+#include "vector_kernels.h"
+
 namespace ambdiag::detail {
 
 namespace {
@@ -15,15 +17,6 @@ bool pair_at(const Eigen::VectorXcd& lam, Eigen::Index i) { return lam(i).imag()
 // The residues' columns go in blocks of 8 (two vectors of 4 doubles for the
 // real parts, two for the imaginary ones).
 constexpr Eigen::Index kBlock = 8;
-
-// GCC compiles the product twice, for x86-64-v3 (AVX2 and FMA: four
-// doubles per instruction) and the baseline, and picks one at load time;
-// the build itself stays generic x86-64.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define AMBDIAG_VECTOR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define AMBDIAG_VECTOR_CLONES
-#endif
 
 typedef double Vec4 __attribute__((vector_size(32)));
 

@@ -12,6 +12,7 @@
 #include "frf_lateral.h"
 #include "frf_pole_sum.h"
 #include "pseudo_eigen.h"
+#include "vector_kernels.h"
 
 namespace ambdiag::detail {
 
@@ -195,11 +196,12 @@ bool BlockArnoldi::extend() {
   if (k + p_ > n) return false;
   if (v_.cols() < k + p_) v_.conservativeResize(Eigen::NoChange, std::min<Eigen::Index>(n, std::max<Eigen::Index>(k + p_, 2 * v_.cols())));
   Eigen::MatrixXd w = op_.apply(v_.middleCols(m_, p_));
-  const auto basis = v_.leftCols(k);
-  Eigen::MatrixXd coef = basis.transpose() * w;
-  w.noalias() -= basis * coef;
-  const Eigen::MatrixXd again = basis.transpose() * w;
-  w.noalias() -= basis * again;
+  // Classical Gram-Schmidt, twice, against the k columns in use.
+  Eigen::MatrixXd coef(k, p_), again(k, p_);
+  gram(v_.data(), n, k, w.data(), p_, coef.data());
+  subtract_product(v_.data(), n, k, coef.data(), p_, w.data());
+  gram(v_.data(), n, k, w.data(), p_, again.data());
+  subtract_product(v_.data(), n, k, again.data(), p_, w.data());
   coef += again;
   const Eigen::MatrixXd r = orthonormalize(w, k);
   h_.conservativeResizeLike(Eigen::MatrixXd::Zero(k + p_, k));

@@ -1,0 +1,24 @@
+// Small dense kernels on the hot paths of the FRF synthesis, compiled twice
+// by GCC's target_clones: for x86-64-v3 (AVX2 and FMA, four doubles per
+// instruction) and for the baseline, one picked at load time, so the build
+// itself stays generic x86-64 (private to the algorithms library).
+#pragma once
+
+#include <Eigen/Core>
+
+namespace ambdiag::detail {
+
+// c (k x p, column-major) = V^T W for V (n x k) and W (n x p), column-major
+// with leading dimension n.
+void gram(const double* v, Eigen::Index n, Eigen::Index k, const double* w, Eigen::Index p, double* c);
+
+// W -= V c (shapes as in gram).
+void subtract_product(const double* v, Eigen::Index n, Eigen::Index k, const double* c, Eigen::Index p, double* w);
+
+}  // namespace ambdiag::detail
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define AMBDIAG_VECTOR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define AMBDIAG_VECTOR_CLONES
+#endif
