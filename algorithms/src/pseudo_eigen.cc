@@ -3,15 +3,18 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <vector>
+
+#include "vector_kernels.h"
 
 namespace ambdiag::detail {
 
 namespace {
 
 using cd = std::complex<double>;
-using RowMatrixXcd = Eigen::Matrix<cd, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 // Backward error below which an inverse-iteration vector is accepted (a few
@@ -199,36 +202,45 @@ bool hessenberg_eigenvector(const Eigen::MatrixXd& h, cd lambda, Eigen::VectorXc
   const double hnorm = std::max(h.cwiseAbs().colwise().sum().maxCoeff(), std::numeric_limits<double>::min());
   const double eps3 = hnorm * kEps;  // replaces an exactly zero pivot
   // LU of B = H - lambda I with partial pivoting between neighbouring rows
-  // (L unit lower bidiagonal up to the swaps); rows contiguous for the
-  // updates.
-  RowMatrixXcd b(m, m);
+  // (L unit lower bidiagonal up to the swaps). Rows contiguous, real and
+  // imaginary parts apart, so that the row operations are vector kernels.
+  using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMatrixXd br(m, m), bi(m, m);
   for (Eigen::Index i = 0; i < m; ++i) {
     // Entries left of the subdiagonal are never read.
-    for (Eigen::Index j = std::max<Eigen::Index>(0, i - 1); j < m; ++j) b(i, j) = h(i, j);
-    b(i, i) -= lambda;
+    for (Eigen::Index j = std::max<Eigen::Index>(0, i - 1); j < m; ++j) {
+      br(i, j) = h(i, j);
+      bi(i, j) = 0.0;
+    }
+    br(i, i) -= lambda.real();
+    bi(i, i) = -lambda.imag();
   }
   std::vector<cd> mult(static_cast<size_t>(m), 0.0);
   std::vector<char> swapped(static_cast<size_t>(m), 0);
+  std::vector<double> tmp(static_cast<size_t>(m));
   for (Eigen::Index i = 0; i + 1 < m; ++i) {
-    cd* ri = &b(i, 0);
-    cd* rn = &b(i + 1, 0);
-    if (abs2(rn[i]) > abs2(ri[i])) {
-      std::swap_ranges(ri + i, ri + m, rn + i);
+    double *rr = &br(i, 0), *ri = &bi(i, 0), *nr = &br(i + 1, 0), *ni = &bi(i + 1, 0);
+    if (nr[i] * nr[i] + ni[i] * ni[i] > rr[i] * rr[i] + ri[i] * ri[i]) {
+      // memcpy: the library's vector copies (std::swap_ranges is scalar).
+      const size_t bytes = static_cast<size_t>(m - i) * sizeof(double);
+      std::memcpy(tmp.data(), rr + i, bytes);
+      std::memcpy(rr + i, nr + i, bytes);
+      std::memcpy(nr + i, tmp.data(), bytes);
+      std::memcpy(tmp.data(), ri + i, bytes);
+      std::memcpy(ri + i, ni + i, bytes);
+      std::memcpy(ni + i, tmp.data(), bytes);
       swapped[static_cast<size_t>(i)] = 1;
     }
-    if (ri[i] == 0.0) ri[i] = eps3;
-    const cd l = mul(rn[i], inv(ri[i]));
+    if (rr[i] == 0.0 && ri[i] == 0.0) rr[i] = eps3;
+    const cd l = mul(cd(nr[i], ni[i]), inv(cd(rr[i], ri[i])));
     mult[static_cast<size_t>(i)] = l;
-    const double lr = l.real(), li = l.imag();
-    for (Eigen::Index j = i + 1; j < m; ++j) {
-      const double ur = ri[j].real(), ui = ri[j].imag();
-      rn[j] = cd(rn[j].real() - (lr * ur - li * ui), rn[j].imag() - (lr * ui + li * ur));
-    }
+    complex_axpy(l.real(), l.imag(), rr + i + 1, ri + i + 1, nr + i + 1, ni + i + 1, m - i - 1);
   }
-  if (b(m - 1, m - 1) == 0.0) b(m - 1, m - 1) = eps3;
+  if (br(m - 1, m - 1) == 0.0 && bi(m - 1, m - 1) == 0.0) br(m - 1, m - 1) = eps3;
   // U x = v; the first step skips L (the start vector is arbitrary), later
   // ones are true inverse-iteration steps x <- B^-1 x / ||x||.
   Eigen::VectorXcd v = Eigen::VectorXcd::Ones(m);
+  Eigen::VectorXd xr(m), xi(m);
   for (int step = 0; step < 3; ++step) {
     if (step > 0) {
       v = x / max_abs(x);
@@ -238,15 +250,13 @@ bool hessenberg_eigenvector(const Eigen::MatrixXd& h, cd lambda, Eigen::VectorXc
       }
     }
     for (Eigen::Index i = m - 1; i >= 0; --i) {
-      const cd* ri = &b(i, 0);
-      double sr = v(i).real(), si = v(i).imag();
-      for (Eigen::Index j = i + 1; j < m; ++j) {
-        const double ur = ri[j].real(), ui = ri[j].imag(), xr = x(j).real(), xi = x(j).imag();
-        sr -= ur * xr - ui * xi;
-        si -= ur * xi + ui * xr;
-      }
-      x(i) = mul(cd(sr, si), inv(ri[i]));
+      double sr = 0.0, si = 0.0;
+      complex_dot(&br(i, 0) + i + 1, &bi(i, 0) + i + 1, xr.data() + i + 1, xi.data() + i + 1, m - i - 1, &sr, &si);
+      const cd xv = mul(v(i) - cd(sr, si), inv(cd(br(i, i), bi(i, i))));
+      xr(i) = xv.real();
+      xi(i) = xv.imag();
     }
+    for (Eigen::Index i = 0; i < m; ++i) x(i) = cd(xr(i), xi(i));
     // B x = P^T L v, and |L v| <= 2 |v| entrywise-max for a bidiagonal L.
     const double xmax = max_abs(x);
     if (!std::isfinite(xmax)) return false;

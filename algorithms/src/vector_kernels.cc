@@ -50,4 +50,49 @@ AMBDIAG_VECTOR_CLONES void subtract_product(const double* v, Eigen::Index n, Eig
   }
 }
 
+AMBDIAG_VECTOR_CLONES void complex_axpy(double l_re, double l_im, const double* x_re, const double* x_im, double* y_re,
+                                        double* y_im, Eigen::Index n) {
+  const Eigen::Index n4 = n / 4 * 4;
+  for (Eigen::Index i = 0; i < n4; i += 4) {
+    Vec4 xr, xi, yr, yi;
+    __builtin_memcpy(&xr, x_re + i, sizeof xr);
+    __builtin_memcpy(&xi, x_im + i, sizeof xi);
+    __builtin_memcpy(&yr, y_re + i, sizeof yr);
+    __builtin_memcpy(&yi, y_im + i, sizeof yi);
+    yr -= l_re * xr - l_im * xi;
+    yi -= l_re * xi + l_im * xr;
+    __builtin_memcpy(y_re + i, &yr, sizeof yr);
+    __builtin_memcpy(y_im + i, &yi, sizeof yi);
+  }
+  for (Eigen::Index i = n4; i < n; ++i) {
+    y_re[i] -= l_re * x_re[i] - l_im * x_im[i];
+    y_im[i] -= l_re * x_im[i] + l_im * x_re[i];
+  }
+}
+
+AMBDIAG_VECTOR_CLONES void complex_dot(const double* a_re, const double* a_im, const double* b_re, const double* b_im,
+                                       Eigen::Index n, double* re, double* im) {
+  const Eigen::Index n4 = n / 4 * 4;
+  Vec4 rr = {0, 0, 0, 0}, ii = rr, ri = rr, ir = rr;
+  for (Eigen::Index i = 0; i < n4; i += 4) {
+    Vec4 ar, ai, br, bi;
+    __builtin_memcpy(&ar, a_re + i, sizeof ar);
+    __builtin_memcpy(&ai, a_im + i, sizeof ai);
+    __builtin_memcpy(&br, b_re + i, sizeof br);
+    __builtin_memcpy(&bi, b_im + i, sizeof bi);
+    rr += ar * br;
+    ii += ai * bi;
+    ri += ar * bi;
+    ir += ai * br;
+  }
+  const Vec4 r = rr - ii, m = ri + ir;
+  double sr = (r[0] + r[1]) + (r[2] + r[3]), si = (m[0] + m[1]) + (m[2] + m[3]);
+  for (Eigen::Index i = n4; i < n; ++i) {
+    sr += a_re[i] * b_re[i] - a_im[i] * b_im[i];
+    si += a_re[i] * b_im[i] + a_im[i] * b_re[i];
+  }
+  *re = sr;
+  *im = si;
+}
+
 }  // namespace ambdiag::detail

@@ -15,6 +15,14 @@ void gram(const double* v, Eigen::Index n, Eigen::Index k, const double* w, Eige
 // W -= V c (shapes as in gram).
 void subtract_product(const double* v, Eigen::Index n, Eigen::Index k, const double* c, Eigen::Index p, double* w);
 
+// Complex vectors stored as separate real and imaginary parts:
+// y -= l x over n entries,
+void complex_axpy(double l_re, double l_im, const double* x_re, const double* x_im, double* y_re, double* y_im,
+                  Eigen::Index n);
+// and the sum of a_i b_i (no conjugate) as (re, im).
+void complex_dot(const double* a_re, const double* a_im, const double* b_re, const double* b_im, Eigen::Index n,
+                 double* re, double* im);
+
 }  // namespace ambdiag::detail
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
