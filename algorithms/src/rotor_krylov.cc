@@ -114,7 +114,11 @@ ShiftInvert::ShiftInvert(const RotorSystem& sys, double sigma, double scale)
 }
 
 Eigen::MatrixXd ShiftInvert::solve(Eigen::MatrixXd rhs) const {
-  if (dense_) return dense_lu_.solve(rhs);
+  if (dense_) {
+    Eigen::MatrixXd x = dense_lu_.permutationP() * rhs;
+    lu_solve_in_place(dense_lu_.matrixLU().data(), n_, x.data(), x.cols());
+    return x;
+  }
   lu_->solve_in_place(rhs);
   if (u_.cols() > 0) rhs.noalias() -= p0u_ * capacitance_.solve(Eigen::MatrixXd(u_.transpose() * rhs));
   return rhs;

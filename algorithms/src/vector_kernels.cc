@@ -95,4 +95,34 @@ AMBDIAG_VECTOR_CLONES void complex_dot(const double* a_re, const double* a_im, c
   *im = si;
 }
 
+namespace {
+
+// y -= a x over n entries.
+inline void axpy_minus(double a, const double* x, double* y, Eigen::Index n) {
+  const Eigen::Index n4 = n / 4 * 4;
+  for (Eigen::Index i = 0; i < n4; i += 4) {
+    Vec4 xv, yv;
+    __builtin_memcpy(&xv, x + i, sizeof xv);
+    __builtin_memcpy(&yv, y + i, sizeof yv);
+    yv -= a * xv;
+    __builtin_memcpy(y + i, &yv, sizeof yv);
+  }
+  for (Eigen::Index i = n4; i < n; ++i) y[i] -= a * x[i];
+}
+
+}  // namespace
+
+AMBDIAG_VECTOR_CLONES void lu_solve_in_place(const double* lu, Eigen::Index n, double* x, Eigen::Index cols) {
+  // Column-oriented substitutions: the inner loops run down contiguous
+  // columns of the factors.
+  for (Eigen::Index q = 0; q < cols; ++q) {
+    double* xq = x + q * n;
+    for (Eigen::Index j = 0; j + 1 < n; ++j) axpy_minus(xq[j], lu + j * n + j + 1, xq + j + 1, n - j - 1);
+    for (Eigen::Index j = n - 1; j >= 0; --j) {
+      xq[j] /= lu[j * n + j];
+      axpy_minus(xq[j], lu + j * n, xq, j);
+    }
+  }
+}
+
 }  // namespace ambdiag::detail

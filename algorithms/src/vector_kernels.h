@@ -23,6 +23,11 @@ void complex_axpy(double l_re, double l_im, const double* x_re, const double* x_
 void complex_dot(const double* a_re, const double* a_im, const double* b_re, const double* b_im, Eigen::Index n,
                  double* re, double* im);
 
+// X <- U^-1 L^-1 X for the packed LU factors of a partial-pivoting LU
+// (n x n column-major: unit lower L below the diagonal, U on and above it;
+// the row permutation is the caller's), X n x cols with leading dimension n.
+void lu_solve_in_place(const double* lu, Eigen::Index n, double* x, Eigen::Index cols);
+
 }  // namespace ambdiag::detail
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
