@@ -155,19 +155,8 @@ bool hessenberg_eigenvalues(Eigen::MatrixXd& h, Eigen::VectorXcd& lam) {
           h(k + 1, j) -= t * vy;
           h(k, j) -= t * vx;
         }
-        const Eigen::Index last = std::min(nn, k + 3);
-        double* c0 = &h(0, k);
-        double* c1 = &h(0, k + 1);
-        double* c2 = three ? &h(0, k + 2) : nullptr;
-        for (Eigen::Index i = l; i <= last; ++i) {  // columns k..k+2
-          double t = vx * c0[i] + vy * c1[i];
-          if (three) {
-            t += vz * c2[i];
-            c2[i] -= t * r;
-          }
-          c1[i] -= t * q;
-          c0[i] -= t;
-        }
+        const Eigen::Index last = std::min(nn, k + 3);  // columns k..k+2, rows l..last
+        reflect_columns(&h(l, k), &h(l, k + 1), three ? &h(l, k + 2) : nullptr, last - l + 1, vx, vy, vz, q, r);
       }
     } while (l + 1 < nn);
   }

@@ -125,4 +125,36 @@ AMBDIAG_VECTOR_CLONES void lu_solve_in_place(const double* lu, Eigen::Index n, d
   }
 }
 
+AMBDIAG_VECTOR_CLONES void reflect_columns(double* c0, double* c1, double* c2, Eigen::Index n, double x, double y,
+                                           double z, double q, double r) {
+  const Eigen::Index n4 = n / 4 * 4;
+  if (c2 == nullptr) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double t = x * c0[i] + y * c1[i];
+      c1[i] -= t * q;
+      c0[i] -= t;
+    }
+    return;
+  }
+  for (Eigen::Index i = 0; i < n4; i += 4) {
+    Vec4 a, b, c;
+    __builtin_memcpy(&a, c0 + i, sizeof a);
+    __builtin_memcpy(&b, c1 + i, sizeof b);
+    __builtin_memcpy(&c, c2 + i, sizeof c);
+    const Vec4 t = x * a + y * b + z * c;
+    a -= t;
+    b -= t * q;
+    c -= t * r;
+    __builtin_memcpy(c0 + i, &a, sizeof a);
+    __builtin_memcpy(c1 + i, &b, sizeof b);
+    __builtin_memcpy(c2 + i, &c, sizeof c);
+  }
+  for (Eigen::Index i = n4; i < n; ++i) {
+    const double t = x * c0[i] + y * c1[i] + z * c2[i];
+    c2[i] -= t * r;
+    c1[i] -= t * q;
+    c0[i] -= t;
+  }
+}
+
 }  // namespace ambdiag::detail

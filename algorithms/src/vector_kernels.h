@@ -28,6 +28,11 @@ void complex_dot(const double* a_re, const double* a_im, const double* b_re, con
 // the row permutation is the caller's), X n x cols with leading dimension n.
 void lu_solve_in_place(const double* lu, Eigen::Index n, double* x, Eigen::Index cols);
 
+// A reflector applied from the right to n rows of two or three columns
+// (c2 null for two): t = x c0 + y c1 [+ z c2]; c0 -= t, c1 -= t q [, c2 -= t r].
+void reflect_columns(double* c0, double* c1, double* c2, Eigen::Index n, double x, double y, double z, double q,
+                     double r);
+
 }  // namespace ambdiag::detail
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
