@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <complex>
 #include <stdexcept>
+#include <vector>
 
 #include "vector_kernels.h"
 
@@ -21,20 +22,19 @@ constexpr Eigen::Index kBlock = 8;
 typedef double Vec4 __attribute__((vector_size(32)));
 
 // h(first + l, e) = sum_i g(l, i) r(i, e) for the lines l of a chunk: g is
-// count x m (column-major complex), r is m x padded (row-major, padded to a
+// count x m (column-major, real and imaginary parts apart), r is m x padded (row-major, padded to a
 // multiple of kBlock with zeros), h column-major with leading dimension ld.
-AMBDIAG_VECTOR_CLONES void accumulate(const cd* g, Eigen::Index count, Eigen::Index m, const double* r,
-                                      Eigen::Index padded, Eigen::Index cols, cd* h, Eigen::Index ld) {
+AMBDIAG_VECTOR_CLONES void accumulate(const double* g_re, const double* g_im, Eigen::Index count, Eigen::Index m,
+                                      const double* r, Eigen::Index padded, Eigen::Index cols, cd* h, Eigen::Index ld) {
   for (Eigen::Index l = 0; l < count; ++l) {
     for (Eigen::Index e0 = 0; e0 < padded; e0 += kBlock) {
       Vec4 re0 = {0, 0, 0, 0}, re1 = re0, im0 = re0, im1 = re0;
       for (Eigen::Index i = 0; i < m; ++i) {
-        const cd gi = g[i * count + l];
+        const double gr = g_re[i * count + l], gm = g_im[i * count + l];
         const double* ri = r + i * padded + e0;
         Vec4 a, b;  // unaligned loads (no Vec4 return: that would change the ABI)
         __builtin_memcpy(&a, ri, sizeof a);
         __builtin_memcpy(&b, ri + 4, sizeof b);
-        const double gr = gi.real(), gm = gi.imag();
         re0 += gr * a;
         re1 += gr * b;
         im0 += gm * a;
@@ -46,6 +46,69 @@ AMBDIAG_VECTOR_CLONES void accumulate(const cd* g, Eigen::Index count, Eigen::In
         h[(e0 + k) * ld + l] = cd(vr, vi);
       }
     }
+  }
+}
+
+// The coefficients g(l, i) of the residue rows on the lines of a chunk
+// (alpha, beta per line with real and imaginary parts apart): a real pole d
+// gives 1 / (alpha - beta d); a pair u +- jv, with a = alpha - beta u and
+// b = beta v, gives a / (a^2 + b^2) and b / (a^2 + b^2) for its two rows.
+// Reciprocals written out (conj(z) / |z|^2): std::complex division guards
+// against overflow with a library call per element, and the scales here
+// (rad/s, their inverses) are far from the limits of double.
+AMBDIAG_VECTOR_CLONES void pole_kernel(const double* al_re, const double* al_im, const double* be_re,
+                                       const double* be_im, Eigen::Index count, const cd* poles, const char* pair,
+                                       Eigen::Index m, double* g_re, double* g_im) {
+  const Eigen::Index c4 = count / 4 * 4;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const double u = poles[i].real(), v = poles[i].imag();
+    double *r0 = g_re + i * count, *i0 = g_im + i * count;
+    if (!pair[i]) {
+      for (Eigen::Index l = 0; l < c4; l += 4) {
+        Vec4 ar, ai, br, bi;
+        __builtin_memcpy(&ar, al_re + l, sizeof ar);
+        __builtin_memcpy(&ai, al_im + l, sizeof ai);
+        __builtin_memcpy(&br, be_re + l, sizeof br);
+        __builtin_memcpy(&bi, be_im + l, sizeof bi);
+        const Vec4 xr = ar - br * u, xi = ai - bi * u;
+        const Vec4 sc = 1.0 / (xr * xr + xi * xi), gr = xr * sc, gi = -xi * sc;
+        __builtin_memcpy(r0 + l, &gr, sizeof gr);
+        __builtin_memcpy(i0 + l, &gi, sizeof gi);
+      }
+      for (Eigen::Index l = c4; l < count; ++l) {
+        const double xr = al_re[l] - be_re[l] * u, xi = al_im[l] - be_im[l] * u;
+        const double sc = 1.0 / (xr * xr + xi * xi);
+        r0[l] = xr * sc;
+        i0[l] = -xi * sc;
+      }
+      continue;
+    }
+    double *r1 = g_re + (i + 1) * count, *i1 = g_im + (i + 1) * count;
+    for (Eigen::Index l = 0; l < c4; l += 4) {
+      Vec4 ar, ai, br, bi;
+      __builtin_memcpy(&ar, al_re + l, sizeof ar);
+      __builtin_memcpy(&ai, al_im + l, sizeof ai);
+      __builtin_memcpy(&br, be_re + l, sizeof br);
+      __builtin_memcpy(&bi, be_im + l, sizeof bi);
+      const Vec4 xr = ar - br * u, xi = ai - bi * u, yr = br * v, yi = bi * v;
+      const Vec4 dr = xr * xr - xi * xi + yr * yr - yi * yi, di = 2.0 * (xr * xi + yr * yi);
+      const Vec4 sc = 1.0 / (dr * dr + di * di), ir = dr * sc, ii = -di * sc;
+      const Vec4 g0r = xr * ir - xi * ii, g0i = xr * ii + xi * ir, g1r = yr * ir - yi * ii, g1i = yr * ii + yi * ir;
+      __builtin_memcpy(r0 + l, &g0r, sizeof g0r);
+      __builtin_memcpy(i0 + l, &g0i, sizeof g0i);
+      __builtin_memcpy(r1 + l, &g1r, sizeof g1r);
+      __builtin_memcpy(i1 + l, &g1i, sizeof g1i);
+    }
+    for (Eigen::Index l = c4; l < count; ++l) {
+      const double xr = al_re[l] - be_re[l] * u, xi = al_im[l] - be_im[l] * u, yr = be_re[l] * v, yi = be_im[l] * v;
+      const double dr = xr * xr - xi * xi + yr * yr - yi * yi, di = 2.0 * (xr * xi + yr * yi);
+      const double sc = 1.0 / (dr * dr + di * di), ir = dr * sc, ii = -di * sc;
+      r0[l] = xr * ir - xi * ii;
+      i0[l] = xr * ii + xi * ir;
+      r1[l] = yr * ir - yi * ii;
+      i1[l] = yr * ii + yi * ir;
+    }
+    ++i;
   }
 }
 
@@ -73,33 +136,6 @@ PoleSum::PoleSum(const Eigen::VectorXcd& eigenvalues, const Eigen::MatrixXd& lef
   }
 }
 
-void PoleSum::kernel(const Eigen::VectorXcd& alpha, const Eigen::VectorXcd& beta, Eigen::Index first,
-                     Eigen::MatrixXcd& g) const {
-  const Eigen::Index lines = g.rows(), m = eigenvalues_.size();
-  // Reciprocals written out (conj(z) / |z|^2): std::complex division
-  // guards against overflow with a library call per element, and the
-  // scales here (rad/s, their inverses) are far from the limits of double.
-  for (Eigen::Index i = 0; i < m; ++i) {
-    const double u = eigenvalues_(i).real(), v = eigenvalues_(i).imag();
-    const bool pair = pair_at(eigenvalues_, i);
-    for (Eigen::Index l = 0; l < lines; ++l) {
-      const cd al = alpha(first + l), be = beta(first + l);
-      const double ar = al.real() - be.real() * u, ai = al.imag() - be.imag() * u;
-      if (!pair) {
-        const double s = 1.0 / (ar * ar + ai * ai);
-        g(l, i) = {ar * s, -ai * s};
-        continue;
-      }
-      const double br = be.real() * v, bi = be.imag() * v;
-      const double dr = ar * ar - ai * ai + br * br - bi * bi, di = 2.0 * (ar * ai + br * bi);
-      const double s = 1.0 / (dr * dr + di * di), ir = dr * s, ii = -di * s;
-      g(l, i) = {ar * ir - ai * ii, ar * ii + ai * ir};
-      g(l, i + 1) = {br * ir - bi * ii, br * ii + bi * ir};
-    }
-    if (pair) ++i;
-  }
-}
-
 Eigen::MatrixXcd PoleSum::evaluate(const Eigen::VectorXcd& alpha, const Eigen::VectorXcd& beta) const {
   // Chunks of lines whose kernel stays in cache; per line the sum over the
   // poles is a real-by-complex product with the residues.
@@ -110,12 +146,23 @@ Eigen::MatrixXcd PoleSum::evaluate(const Eigen::VectorXcd& alpha, const Eigen::V
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   RowMajor r = RowMajor::Zero(m, padded);
   r.leftCols(cols) = residues_;
-  Eigen::MatrixXcd h(lines, cols), g;
+  // The kernel for a chunk, real and imaginary parts apart.
+  std::vector<char> pair(static_cast<size_t>(m), 0);
+  for (Eigen::Index i = 0; i < m; ++i)
+    if (pair_at(eigenvalues_, i)) pair[static_cast<size_t>(i++)] = 1;
+  Eigen::MatrixXd ab(kChunk, 4), g_re(kChunk, m), g_im(kChunk, m);
+  Eigen::MatrixXcd h(lines, cols);
   for (Eigen::Index first = 0; first < lines; first += kChunk) {
     const Eigen::Index count = std::min(kChunk, lines - first);
-    g.resize(count, m);
-    kernel(alpha, beta, first, g);
-    accumulate(g.data(), count, m, r.data(), padded, cols, h.data() + first, lines);
+    for (Eigen::Index l = 0; l < count; ++l) {
+      ab(l, 0) = alpha(first + l).real();
+      ab(l, 1) = alpha(first + l).imag();
+      ab(l, 2) = beta(first + l).real();
+      ab(l, 3) = beta(first + l).imag();
+    }
+    pole_kernel(ab.col(0).data(), ab.col(1).data(), ab.col(2).data(), ab.col(3).data(), count, eigenvalues_.data(),
+                pair.data(), m, g_re.data(), g_im.data());
+    accumulate(g_re.data(), g_im.data(), count, m, r.data(), padded, cols, h.data() + first, lines);
   }
   return h;
 }
