@@ -26,11 +26,14 @@ typedef double Vec4 __attribute__((vector_size(32)));
 // multiple of kBlock with zeros), h column-major with leading dimension ld.
 AMBDIAG_VECTOR_CLONES void accumulate(const double* g_re, const double* g_im, Eigen::Index count, Eigen::Index m,
                                       const double* r, Eigen::Index padded, Eigen::Index cols, cd* h, Eigen::Index ld) {
-  for (Eigen::Index l = 0; l < count; ++l) {
+  // Two lines at a time: each residue load feeds eight multiply-adds.
+  for (Eigen::Index l = 0; l < count; l += 2) {
+    const Eigen::Index l1 = std::min(l + 1, count - 1);  // an odd count repeats its last line
     for (Eigen::Index e0 = 0; e0 < padded; e0 += kBlock) {
-      Vec4 re0 = {0, 0, 0, 0}, re1 = re0, im0 = re0, im1 = re0;
+      Vec4 re0 = {0, 0, 0, 0}, re1 = re0, im0 = re0, im1 = re0, se0 = re0, se1 = re0, sm0 = re0, sm1 = re0;
       for (Eigen::Index i = 0; i < m; ++i) {
         const double gr = g_re[i * count + l], gm = g_im[i * count + l];
+        const double hr = g_re[i * count + l1], hm = g_im[i * count + l1];
         const double* ri = r + i * padded + e0;
         Vec4 a, b;  // unaligned loads (no Vec4 return: that would change the ABI)
         __builtin_memcpy(&a, ri, sizeof a);
@@ -39,11 +42,16 @@ AMBDIAG_VECTOR_CLONES void accumulate(const double* g_re, const double* g_im, Ei
         re1 += gr * b;
         im0 += gm * a;
         im1 += gm * b;
+        se0 += hr * a;
+        se1 += hr * b;
+        sm0 += hm * a;
+        sm1 += hm * b;
       }
       const Eigen::Index n = std::min(kBlock, cols - e0);
       for (Eigen::Index k = 0; k < n; ++k) {
-        const double vr = k < 4 ? re0[k] : re1[k - 4], vi = k < 4 ? im0[k] : im1[k - 4];
-        h[(e0 + k) * ld + l] = cd(vr, vi);
+        const Eigen::Index c = (e0 + k) * ld;
+        h[c + l] = k < 4 ? cd(re0[k], im0[k]) : cd(re1[k - 4], im1[k - 4]);
+        h[c + l1] = k < 4 ? cd(se0[k], sm0[k]) : cd(se1[k - 4], sm1[k - 4]);
       }
     }
   }

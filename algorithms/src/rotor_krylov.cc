@@ -134,7 +134,7 @@ Eigen::MatrixXd ShiftInvert::apply(const Eigen::MatrixXd& x) const {
   const Eigen::MatrixXd b1 = x.topRows(n_), b2 = x.bottomRows(n_);
   Eigen::MatrixXd rhs = -scale_ * (sys_.m * b2);
   if (dense_) {
-    rhs.noalias() -= ct_sigma_m_ * b1;
+    subtract_product(ct_sigma_m_.data(), n_, n_, b1.data(), b1.cols(), rhs.data());
   } else {
     rhs -= damping_times(b1) + sigma_ * (sys_.m * b1);
   }
