@@ -2,8 +2,8 @@
 // the pole sums of the FRF synthesis (private to the algorithms library):
 //   T P = P D,  D block diagonal with 1 x 1 blocks d and 2 x 2 blocks
 //   [u v; -v u] for the pair u +- jv (v > 0), P real,
-// the form of Eigen's EigenSolver (pseudoEigenvectors), at about half its
-// cost: T = Q H Q^T (Householder Hessenberg reduction), the eigenvalues of H
+// the form of Eigen's EigenSolver (pseudoEigenvectors), at about 40 % of
+// its cost (m = 68: ~10 M instructions against 24.8 M): T = Q H Q^T (Householder Hessenberg reduction), the eigenvalues of H
 // by Francis double-shift QR without Schur vectors, and the eigenvector of
 // H for each pole by inverse iteration on the Hessenberg form (O(m^2) per
 // pole, as LAPACK dhsein / dlaein; Wilkinson, The Algebraic Eigenvalue
