@@ -163,6 +163,32 @@ bool hessenberg_eigenvalues(Eigen::MatrixXd& h, Eigen::VectorXcd& lam) {
   return true;
 }
 
+// T = Q H Q^T by Householder reflectors (Golub & Van Loan, alg. 7.4.2),
+// overwriting t with H; the reflectors as in PseudoEigen.
+void hessenberg_reduce(Eigen::MatrixXd& t, Eigen::MatrixXd& reflectors, Eigen::VectorXd& taus) {
+  const Eigen::Index m = t.rows();
+  reflectors = Eigen::MatrixXd::Zero(m, std::max<Eigen::Index>(m - 2, 0));
+  taus = Eigen::VectorXd::Zero(std::max<Eigen::Index>(m - 2, 0));
+  Eigen::VectorXd work(m);
+  for (Eigen::Index k = 0; k + 2 < m; ++k) {
+    const Eigen::Index len = m - k - 1;
+    double* x = &t(k + 1, k);
+    double tail = 0.0;
+    for (Eigen::Index i = 1; i < len; ++i) tail += x[i] * x[i];
+    if (tail == 0.0) continue;  // already reduced: H_k = I
+    const double alpha = x[0], beta = alpha >= 0.0 ? -std::sqrt(alpha * alpha + tail) : std::sqrt(alpha * alpha + tail);
+    const double tau = (beta - alpha) / beta, scale = 1.0 / (alpha - beta);
+    double* v = &reflectors(k + 1, k);
+    v[0] = 1.0;
+    for (Eigen::Index i = 1; i < len; ++i) v[i] = x[i] * scale;
+    x[0] = beta;
+    for (Eigen::Index i = 1; i < len; ++i) x[i] = 0.0;
+    taus(k) = tau;
+    reflect_left(&t(k + 1, k + 1), m, len, len, v, tau);
+    reflect_right(&t(0, k + 1), m, m, len, v, tau, work.data());
+  }
+}
+
 bool clustered(const Eigen::VectorXcd& lam, double scale) {
   const Eigen::Index m = lam.size();
   for (Eigen::Index i = 0; i < m; ++i)
@@ -263,8 +289,8 @@ PseudoEigen pseudo_eigen(const Eigen::MatrixXd& t) {
   if (t.cols() != m) throw std::logic_error("pseudo_eigen: matrix not square");
   if (m < 3) return with_eigen_solver(t);
   PseudoEigen out;
-  out.hess.compute(t);
-  const Eigen::MatrixXd h = out.hess.matrixH();
+  Eigen::MatrixXd h = t;
+  hessenberg_reduce(h, out.reflectors, out.taus);
   Eigen::MatrixXd work = h;
   if (!hessenberg_eigenvalues(work, out.eigenvalues)) throw std::runtime_error("eigenproblem of a projected matrix did not converge");
   const double scale = std::max(t.cwiseAbs().colwise().sum().maxCoeff(), std::numeric_limits<double>::min());
@@ -283,14 +309,22 @@ PseudoEigen pseudo_eigen(const Eigen::MatrixXd& t) {
 }
 
 Eigen::MatrixXd PseudoEigen::left_times(const Eigen::MatrixXd& l) const {
-  if (!used_inverse_iteration) return l * x;
-  const Eigen::MatrixXd lq = l * hess.matrixQ();
+  Eigen::MatrixXd lq = l;  // L Q: the reflectors from the right, first to last
+  const Eigen::Index m = x.rows();
+  Eigen::VectorXd work(l.rows());
+  for (Eigen::Index k = 0; k < taus.size(); ++k)
+    if (taus(k) != 0.0)
+      reflect_right(lq.data() + (k + 1) * lq.rows(), lq.rows(), lq.rows(), m - k - 1, reflectors.col(k).data() + k + 1,
+                    taus(k), work.data());
   return lq * x;
 }
 
 Eigen::MatrixXd PseudoEigen::solve(const Eigen::MatrixXd& r) const {
-  if (!used_inverse_iteration) return x_lu.solve(r);
-  const Eigen::MatrixXd qr = hess.matrixQ().transpose() * r;
+  Eigen::MatrixXd qr = r;  // Q^T R: the reflectors from the left, first to last
+  const Eigen::Index m = x.rows();
+  for (Eigen::Index k = 0; k < taus.size(); ++k)
+    if (taus(k) != 0.0)
+      reflect_left(qr.data() + k + 1, qr.rows(), m - k - 1, qr.cols(), reflectors.col(k).data() + k + 1, taus(k));
   return x_lu.solve(qr);
 }
 

@@ -20,7 +20,6 @@
 #include <complex>
 
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 namespace ambdiag::detail {
@@ -35,8 +34,11 @@ struct PseudoEigen {
   Eigen::MatrixXd solve(const Eigen::MatrixXd& r) const;       // P^-1 R
   Eigen::MatrixXd vectors() const;                              // P
 
-  // P = Q X with Q from `hess` (identity when used_inverse_iteration is false).
-  Eigen::HessenbergDecomposition<Eigen::MatrixXd> hess;
+  // P = Q X, Q = H_0 H_1 ... H_{m-3} with H_k = I - tau_k v_k v_k^T acting
+  // on rows k + 1.. (column k of `reflectors` holds v_k there, leading 1);
+  // no reflectors when used_inverse_iteration is false (Q = I).
+  Eigen::MatrixXd reflectors;
+  Eigen::VectorXd taus;
   Eigen::MatrixXd x;
   Eigen::PartialPivLU<Eigen::MatrixXd> x_lu;
 };

@@ -157,4 +157,29 @@ AMBDIAG_VECTOR_CLONES void reflect_columns(double* c0, double* c1, double* c2, E
   }
 }
 
+AMBDIAG_VECTOR_CLONES void reflect_left(double* a, Eigen::Index ld, Eigen::Index len, Eigen::Index cols,
+                                        const double* v, double tau) {
+  const Eigen::Index n4 = len / 4 * 4;
+  for (Eigen::Index j = 0; j < cols; ++j) {
+    double* c = a + j * ld;
+    Vec4 acc = {0, 0, 0, 0};
+    for (Eigen::Index i = 0; i < n4; i += 4) {
+      Vec4 x, y;
+      __builtin_memcpy(&x, v + i, sizeof x);
+      __builtin_memcpy(&y, c + i, sizeof y);
+      acc += x * y;
+    }
+    double s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for (Eigen::Index i = n4; i < len; ++i) s += v[i] * c[i];
+    axpy_minus(tau * s, v, c, len);
+  }
+}
+
+AMBDIAG_VECTOR_CLONES void reflect_right(double* a, Eigen::Index ld, Eigen::Index rows, Eigen::Index len,
+                                         const double* v, double tau, double* work) {
+  for (Eigen::Index i = 0; i < rows; ++i) work[i] = 0.0;
+  for (Eigen::Index j = 0; j < len; ++j) axpy_minus(-v[j], a + j * ld, work, rows);  // work = A v
+  for (Eigen::Index j = 0; j < len; ++j) axpy_minus(tau * v[j], work, a + j * ld, rows);
+}
+
 }  // namespace ambdiag::detail

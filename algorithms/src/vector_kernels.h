@@ -33,6 +33,14 @@ void lu_solve_in_place(const double* lu, Eigen::Index n, double* x, Eigen::Index
 void reflect_columns(double* c0, double* c1, double* c2, Eigen::Index n, double x, double y, double z, double q,
                      double r);
 
+// Householder reflector I - tau v v^T (v of length len) applied to a block
+// of a column-major matrix with leading dimension ld: from the left to
+// rows [0, len) of `cols` columns, or from the right to columns [0, len)
+// of `rows` rows (a points at the block's first entry).
+void reflect_left(double* a, Eigen::Index ld, Eigen::Index len, Eigen::Index cols, const double* v, double tau);
+void reflect_right(double* a, Eigen::Index ld, Eigen::Index rows, Eigen::Index len, const double* v, double tau,
+                   double* work);
+
 }  // namespace ambdiag::detail
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
