@@ -11,8 +11,8 @@
 //   det = (alpha - beta u)^2 + (beta v)^2,
 // so each line costs one complex division per pair and a real-by-complex
 // product per residue entry: half the arithmetic of summing both poles of
-// the pair in complex arithmetic, done as one real matrix product
-// (the complex kernel read as a real matrix of twice the rows).
+// the pair in complex arithmetic. Kernel and product are vector kernels
+// over chunks of lines (AVX2/FMA where the CPU has it, vector_kernels.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -31,9 +31,6 @@ class PoleSum {
   Eigen::MatrixXcd evaluate(const Eigen::VectorXcd& alpha, const Eigen::VectorXcd& beta) const;
 
  private:
-  // The coefficient of each residue row on lines [first, first + count).
-  void kernel(const Eigen::VectorXcd& alpha, const Eigen::VectorXcd& beta, Eigen::Index first, Eigen::MatrixXcd& g) const;
-
   Eigen::VectorXcd eigenvalues_;
   Eigen::MatrixXd residues_;  // m x (rows * inputs)
 };

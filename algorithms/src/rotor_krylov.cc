@@ -11,6 +11,8 @@
 #include "ambdiag/core/error.h"
 #include "frf_lateral.h"
 #include "frf_pole_sum.h"
+#include "pseudo_eigen.h"
+#include "vector_kernels.h"
 
 namespace ambdiag::detail {
 
@@ -112,7 +114,11 @@ ShiftInvert::ShiftInvert(const RotorSystem& sys, double sigma, double scale)
 }
 
 Eigen::MatrixXd ShiftInvert::solve(Eigen::MatrixXd rhs) const {
-  if (dense_) return dense_lu_.solve(rhs);
+  if (dense_) {
+    Eigen::MatrixXd x = dense_lu_.permutationP() * rhs;
+    lu_solve_in_place(dense_lu_.matrixLU().data(), n_, x.data(), x.cols());
+    return x;
+  }
   lu_->solve_in_place(rhs);
   if (u_.cols() > 0) rhs.noalias() -= p0u_ * capacitance_.solve(Eigen::MatrixXd(u_.transpose() * rhs));
   return rhs;
@@ -128,7 +134,7 @@ Eigen::MatrixXd ShiftInvert::apply(const Eigen::MatrixXd& x) const {
   const Eigen::MatrixXd b1 = x.topRows(n_), b2 = x.bottomRows(n_);
   Eigen::MatrixXd rhs = -scale_ * (sys_.m * b2);
   if (dense_) {
-    rhs.noalias() -= ct_sigma_m_ * b1;
+    subtract_product(ct_sigma_m_.data(), n_, n_, b1.data(), b1.cols(), rhs.data());
   } else {
     rhs -= damping_times(b1) + sigma_ * (sys_.m * b1);
   }
@@ -194,11 +200,12 @@ bool BlockArnoldi::extend() {
   if (k + p_ > n) return false;
   if (v_.cols() < k + p_) v_.conservativeResize(Eigen::NoChange, std::min<Eigen::Index>(n, std::max<Eigen::Index>(k + p_, 2 * v_.cols())));
   Eigen::MatrixXd w = op_.apply(v_.middleCols(m_, p_));
-  const auto basis = v_.leftCols(k);
-  Eigen::MatrixXd coef = basis.transpose() * w;
-  w.noalias() -= basis * coef;
-  const Eigen::MatrixXd again = basis.transpose() * w;
-  w.noalias() -= basis * again;
+  // Classical Gram-Schmidt, twice, against the k columns in use.
+  Eigen::MatrixXd coef(k, p_), again(k, p_);
+  gram(v_.data(), n, k, w.data(), p_, coef.data());
+  subtract_product(v_.data(), n, k, coef.data(), p_, w.data());
+  gram(v_.data(), n, k, w.data(), p_, again.data());
+  subtract_product(v_.data(), n, k, again.data(), p_, w.data());
   coef += again;
   const Eigen::MatrixXd r = orthonormalize(w, k);
   h_.conservativeResizeLike(Eigen::MatrixXd::Zero(k + p_, k));
@@ -312,18 +319,16 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
     }
     const bool last = !room || arnoldi.size() >= kMaxSize;
     const int m = arnoldi.size();
-    // T = P D P^-1 in real arithmetic (D block diagonal); the reduced solve
-    // y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the residual
-    // rows F E_last^T y share the kernel.
-    const Eigen::EigenSolver<Eigen::MatrixXd> es(arnoldi.projected());
-    if (es.info() != Eigen::Success) throw std::runtime_error("Krylov: eigenproblem of the projected matrix failed");
-    const Eigen::MatrixXd& pv = es.pseudoEigenvectors();
+    // T = P D P^-1 in real arithmetic (D block diagonal); the reduced
+    // solve y(s) = P (I - mu D)^-1 P^-1 E_1 beta, H = -Cout V y and the
+    // residual rows F E_last^T y share the kernel.
+    const PseudoEigen es = pseudo_eigen(arnoldi.projected());
     Eigen::MatrixXd e1b = Eigen::MatrixXd::Zero(m, n_in);
     e1b.topRows(p) = beta;
-    Eigen::MatrixXd left(n_out + p, m);
-    left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m)) * pv;
-    left.bottomRows(p).noalias() = arnoldi.coupling() * pv.bottomRows(p);
-    const PoleSum sum(es.eigenvalues(), left, pv.partialPivLu().solve(e1b));
+    Eigen::MatrixXd left = Eigen::MatrixXd::Zero(n_out + p, m);
+    left.topRows(n_out).noalias() = -(maps.c_out * arnoldi.vectors().topLeftCorner(n, m));
+    left.bottomRightCorner(p, p) = arnoldi.coupling();
+    const PoleSum sum(es.eigenvalues, es.left_times(left), es.solve(e1b));
     double worst = worst_residual(sum.evaluate(ones_sub, mu_sub), mu_sub);
     if (worst <= tol || last) {
       const double t1 = now_s();
@@ -336,7 +341,7 @@ Eigen::MatrixXcd lateral_frf_modal_krylov(const RotorSystem& sys, const LateralM
         report.converged = worst <= tol;
         report.poles = m;
         for (Eigen::Index i = 0; i < m; ++i)
-          report.poles_in_band += std::abs(sigma + 1.0 / es.eigenvalues()(i)) <= w_max ? 1 : 0;
+          report.poles_in_band += std::abs(sigma + 1.0 / es.eigenvalues(i)) <= w_max ? 1 : 0;
         report.lines_s = lines_s;
         report.setup_s = seconds_since(t0) - lines_s;
         return all.leftCols(n_h);
