@@ -32,7 +32,8 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 }
 
 int run_serve(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms"}, {"--quiet"});
+  const Args args(argv, {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms"},
+                  {"--quiet", "--bench-inline-checkpoints"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -51,11 +52,21 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGTERM, on_stop_signal);
 
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
+  // Commits (and so acks) never wait for a checkpoint's fsyncs.
+  if (!args.flag("--bench-inline-checkpoints")) historian.checkpoint_in_background();
   server::Ingest ingest(historian, opt);
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
-  rest_opt.health_extra = [&ingest] { return nlohmann::json{{"ingest", ingest.health()}}; };
+  rest_opt.health_extra = [&ingest, &historian] {
+    const auto ck = historian.checkpoint_stats();
+    return nlohmann::json{{"ingest", ingest.health()},
+                          {"checkpoints", {{"background", ck.background},
+                                           {"by_writer", ck.inline_by_writer},
+                                           {"pages_copied", ck.pages_copied},
+                                           {"errors", ck.errors},
+                                           {"last_error", ck.last_error}}}};
+  };
   server::RestServer rest(rest_opt);
   const int bound_port = rest.start();
   std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d\n", db->c_str(),
@@ -107,6 +118,8 @@ std::vector<Command> serve_commands() {
            "the REST read side on port N. A run whose agent falls silent for S seconds\n"
            "(default 10) before its end is marked incomplete. SIGINT/SIGTERM stop it cleanly.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
+           "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
+           "  checkpoint thread (for comparison; benchmarks only).\n"
            "Set CYCLONEDDS_URI to a Cyclone config (deploy/cyclonedds/local.xml on one machine).\n",
            run_serve}};
 }

@@ -417,6 +417,18 @@ void Historian::WriteBatch::commit() {
 
 Historian::WriteBatch Historian::write_batch() { return WriteBatch(this); }
 
+void Historian::checkpoint_in_background(int trigger_pages) {
+  impl_->require_writer("checkpoint_in_background");
+  if (impl_->checkpointer) throw std::logic_error("Historian::checkpoint_in_background called twice");
+  if (trigger_pages < 1) throw std::invalid_argument("Historian::checkpoint_in_background: trigger_pages must be >= 1");
+  impl_->checkpointer = std::make_unique<detail::BackgroundCheckpoint>(impl_->db.get(), impl_->db.path(),
+                                                                       trigger_pages, 16 * trigger_pages);
+}
+
+CheckpointStats Historian::checkpoint_stats() const {
+  return impl_->checkpointer ? impl_->checkpointer->stats() : CheckpointStats{};
+}
+
 Historian::Snapshot::Snapshot(Historian* h) : h_(h) {
   auto& impl = *h_->impl_;
   if (impl.snapshot_depth++ == 0 && !impl.db.in_transaction())

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <bit>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -10,6 +11,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
+#include "background_checkpoint.h"
 #include "sqlite_db.h"
 
 namespace ambdiag::storage {
@@ -29,6 +31,8 @@ struct Historian::Impl {
   std::optional<Transaction> snapshot_tx;
   std::optional<Transaction> batch_tx;  // an open WriteBatch
   std::unordered_map<const char*, Stmt> stmts;  // keyed by the SQL literal's address
+  // Last: stopped (its hook removed) before the connection closes.
+  std::unique_ptr<detail::BackgroundCheckpoint> checkpointer;
 
   Impl(detail::Db d, bool ro) : db(std::move(d)), read_only(ro) {}
 

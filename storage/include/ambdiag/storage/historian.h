@@ -119,6 +119,16 @@ struct HeldDigest {
   ChecksumKind kind = ChecksumKind::fnv1a64;
 };
 
+// What the background checkpoints did (Historian::checkpoint_in_background).
+struct CheckpointStats {
+  std::int64_t background = 0;        // checkpoints by the checkpoint thread
+  std::int64_t inline_by_writer = 0;  // by the writer, because the thread fell behind
+  std::int64_t pages_copied = 0;      // log pages copied into the database file
+  std::int64_t log_pages_last = 0;    // pages in the log at the last checkpoint
+  std::int64_t errors = 0;
+  std::string last_error;
+};
+
 class Historian {
  public:
   enum class Mode {
@@ -184,6 +194,15 @@ class Historian {
     Historian* h_;
   };
   WriteBatch write_batch();
+
+  // Moves the checkpoints (copying the write-ahead log into the database
+  // file, with its fsyncs) from the committing writer to a thread and
+  // connection of their own: commits no longer wait for them. Started after
+  // every `trigger_pages` of log; if the thread falls behind, the writer
+  // checkpoints itself at 16 x that, so the log stays bounded. Stops with
+  // the Historian. Call once, on a Mode::write historian.
+  void checkpoint_in_background(int trigger_pages = 1000);
+  CheckpointStats checkpoint_stats() const;  // zeros when not started
 
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
