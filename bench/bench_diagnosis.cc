@@ -16,6 +16,7 @@
 #include "ambdiag/algorithms/diagnosis.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
+#include "ambdiag/core/process_memory.h"
 #include "bench_util.h"
 
 namespace {
@@ -28,6 +29,7 @@ double median(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   const int reps = argc > 1 ? std::max(1, std::atoi(argv[1])) : 3;
   const char* env = std::getenv("AMBDIAG_SHARED_DATA");
   const std::string dir = env ? env : AMBDIAG_BENCH_SHARED_DATA;

@@ -16,6 +16,7 @@
 #include "ambdiag/algorithms/frf_estimation.h"
 #include "ambdiag/algorithms/rational_fit.h"
 #include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/process_memory.h"
 #include "ambdiag/core/run_recording.h"
 
 namespace {
@@ -75,4 +76,12 @@ BENCHMARK(BM_FitAmrotorAutoOrder)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+// BENCHMARK_MAIN with the memory setting of the ambdiag executables.
+int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

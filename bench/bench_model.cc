@@ -20,6 +20,7 @@
 #include "ambdiag/algorithms/frf_synthesis.h"
 #include "ambdiag/algorithms/modal_analysis.h"
 #include "ambdiag/core/plant_model.h"
+#include "ambdiag/core/process_memory.h"
 #include "generated_rotor.h"
 
 namespace {
@@ -162,6 +163,7 @@ class ScalingReporter : public benchmark::ConsoleReporter {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   ScalingReporter reporter;

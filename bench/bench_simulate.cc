@@ -12,12 +12,14 @@
 
 #include "ambdiag/algorithms/amb_loop.h"
 #include "ambdiag/core/plant_model.h"
+#include "ambdiag/core/process_memory.h"
 #include "bench_util.h"
 
 using ambdiag::bench::cpu_seconds;
 using ambdiag::bench::wall_seconds;
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   const char* env = std::getenv("AMBDIAG_SHARED_DATA");
   const std::string path = argc > 1 ? argv[1] : std::string(env ? env : AMBDIAG_BENCH_SHARED_DATA) + "/reference_pump/plant.json";
   const ambdiag::PlantModel plant = ambdiag::read_plant_file(path);

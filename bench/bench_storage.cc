@@ -21,6 +21,7 @@
 #include <httplib.h>
 
 #include "ambdiag/core/checksum.h"
+#include "ambdiag/core/process_memory.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "bench_util.h"
@@ -99,6 +100,7 @@ std::string run_json(const std::string& run_id) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   double mb = 128;
   fs::path dir = fs::temp_directory_path() / "ambdiag-bench-storage";
   for (int i = 1; i + 1 < argc; i += 2) {

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "ambdiag/core/checksum.h"
+#include "ambdiag/core/process_memory.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/storage/historian.h"
 #include "bench_util.h"
@@ -278,6 +279,7 @@ double storage_ceiling(const fs::path& dir, const std::vector<ambdiag::RunRecord
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   double seconds = 30;  // per run: 30 s x 8 kHz x 15 ch x 4 B = 14.4 MB
   int agents = 4, pumps = 16, reps = 3, failed_total = 0;
   bool quick = false;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/core/process_memory.h"
 #include "args.h"
 #include "command.h"
 
@@ -44,6 +45,7 @@ void print_usage(const std::vector<Command>& cmds, const std::vector<std::string
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   const std::vector<std::string> args(argv + 1, argv + argc);
   const auto cmds = all_commands();
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {

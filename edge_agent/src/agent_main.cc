@@ -19,6 +19,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/plant_model.h"
+#include "ambdiag/core/process_memory.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/edge_agent/block_source.h"
 #include "ambdiag/edge_agent/config.h"
@@ -266,6 +267,7 @@ int run(const Cli& c) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ambdiag::retain_freed_memory();
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   if (argc >= 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
