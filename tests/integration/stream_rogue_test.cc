@@ -12,6 +12,7 @@
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/proto/stream.h"
+#include "hand_agent.h"
 #include "stream_fixture.h"
 
 namespace ambdiag::testing {
@@ -38,16 +39,7 @@ TEST_F(StreamTest, RogueWriterSamplesAreRejectedCountedAndServerKeepsRunning) {
     for (int i = 0; i < 200 && rogue.block.matched() == 0; ++i) std::this_thread::sleep_for(50ms);
     ASSERT_GT(rogue.block.matched(), 0);
 
-    const std::string header_json = run_to_json(rec).dump();
-    ambdiag_stream_RunHeader h{};
-    h.protocol_version = stream::kProtocolVersion;
-    h.run_id = const_cast<char*>("ROGUE/1");
-    h.pump_id = const_cast<char*>(rec.pump_id.c_str());
-    h.header_json = const_cast<char*>(header_json.c_str());
-    h.n_channels = n_ch;
-    h.sample_rate_hz = rec.sample_rate_hz;
-    h.frames_per_block = 16;
-    rogue.header.write(h);
+    send_run_header(rogue, rec, "ROGUE/1", stream::kProtocolVersion, 16);
     ASSERT_TRUE(wait_status("ROGUE/1", storage::RunStatus::receiving, 10s)) << server->log();
 
     auto send = [&](int64_t seq, uint32_t n_frames, std::string payload, uint64_t checksum, uint32_t version) {

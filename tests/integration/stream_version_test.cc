@@ -10,6 +10,7 @@
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/proto/stream.h"
+#include "hand_agent.h"
 #include "stream_fixture.h"
 
 namespace ambdiag::testing {
@@ -29,16 +30,7 @@ TEST_F(StreamTest, AProtocol10AgentWithFnvChecksumsIsVerifiedComplete) {
     stream::AgentEndpoints old(domain, partition);
     for (int i = 0; i < 200 && old.block.matched() == 0; ++i) std::this_thread::sleep_for(50ms);
     ASSERT_GT(old.block.matched(), 0);
-    const std::string header_json = run_to_json(rec).dump();
-    ambdiag_stream_RunHeader h{};
-    h.protocol_version = v10;
-    h.run_id = const_cast<char*>("OLD/1");
-    h.pump_id = const_cast<char*>(rec.pump_id.c_str());
-    h.header_json = const_cast<char*>(header_json.c_str());
-    h.n_channels = n_ch;
-    h.sample_rate_hz = rec.sample_rate_hz;
-    h.frames_per_block = 64;
-    old.header.write(h);
+    send_run_header(old, rec, "OLD/1", v10, 64);
     ASSERT_TRUE(wait_status("OLD/1", storage::RunStatus::receiving, 10s)) << server->log();
     int64_t seq = 0;
     for (size_t at = 0; at < all.size(); at += block_bytes, ++seq) {
