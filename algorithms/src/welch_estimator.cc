@@ -196,13 +196,23 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
   }
   for (auto& m : s) m = m.selfadjointView<Eigen::Lower>();
 
-  // Lines with instrument power.
+  // Lines with instrument power, in all and per instrument: every input
+  // must be excited at a line for the MIMO solve there (a sweep that ends
+  // early leaves the top of its input's band to leakage).
   std::vector<double> power(static_cast<size_t>(nb));
+  std::vector<std::vector<double>> power_of(static_cast<size_t>(nw), std::vector<double>(static_cast<size_t>(nb)));
   for (long b = 0; b < nb; ++b) {
-    power[static_cast<size_t>(b)] = s[static_cast<size_t>(b)].diagonal().segment(w0, nw).real().sum();
+    for (Eigen::Index i = 0; i < nw; ++i) {
+      const double p = s[static_cast<size_t>(b)](w0 + i, w0 + i).real();
+      power_of[static_cast<size_t>(i)][static_cast<size_t>(b)] = p;
+      power[static_cast<size_t>(b)] += p;
+    }
   }
   const double max_power = *std::max_element(power.begin(), power.end());
   const double median_power = median_excited_power(power, kExcitedPowerFraction);
+  std::vector<double> median_of(static_cast<size_t>(nw));
+  for (Eigen::Index i = 0; i < nw; ++i)
+    median_of[static_cast<size_t>(i)] = median_excited_power(power_of[static_cast<size_t>(i)], kExcitedPowerFraction);
   const bool with_sigma = n_win > n_in;
   frf_estimation::FrfAssembler out(plan, with_sigma, with_sigma);
   Eigen::MatrixXd sigma(n_out, n_in), coh(n_out, n_in);
@@ -216,6 +226,15 @@ FrfEstimate estimate_welch(const RunRecording& run, const ChannelPlan& plan,
     }
     if (power[static_cast<size_t>(b)] < kWeakLineFraction * median_power) {
       out.drop(f_hz, "the instrument has less than 1 % of its median power there");
+      continue;
+    }
+    Eigen::Index weak = 0;
+    while (weak < nw && power_of[static_cast<size_t>(weak)][static_cast<size_t>(b)] >=
+                            kWeakLineFraction * median_of[static_cast<size_t>(weak)])
+      ++weak;
+    if (weak < nw) {
+      out.drop(f_hz, "instrument " + run.channels[static_cast<size_t>(chans[static_cast<size_t>(w0 + weak)])].name +
+                         " has less than 1 % of its median power there");
       continue;
     }
     const Eigen::MatrixXcd& sb = s[static_cast<size_t>(b)];

@@ -360,6 +360,32 @@ TEST(FrfEstimation, SweepsOfDifferentLengthsFallBackToWelchWithAWarning) {
   EXPECT_LT(s.worst, 1.4) << s.worst_entry;
 }
 
+// A segment that stops before its sweep does leaves the top of that
+// input's band without excitation: those lines are dropped with a warning
+// naming the reference (kept, their sigma was 2-3 x too small: mean
+// |dH|^2/sigma^2 4-9 there), and the rest stays unbiased.
+TEST(FrfEstimation, LinesOneInputDoesNotExciteAreDroppedNamingIt) {
+  ClosedLoop c = simulate_closed_loop(ExcitationType::chirp, 1 << 16, 1e-5, 0.5);
+  c.run.excitation->segments.back().length -= 4096;  // the last 12 % of the second sweep left out
+  FrfEstimationOptions opt;
+  opt.nfft = 2048;
+  const FrfEstimate est = estimate_frf(c.run, opt);
+  EXPECT_EQ(est.method, "welch-ref");
+  bool named = false;
+  for (const auto& w : est.warnings) named = named || w.find("instrument r2 has less than 1 %") != std::string::npos;
+  EXPECT_TRUE(named) << ::testing::PrintToString(est.warnings);
+  // The sweep reaches 0.45 fs = 450 Hz; 12 % of it is left out: above
+  // about 400 Hz there is no line.
+  ASSERT_FALSE(est.frf.freq_hz.empty());
+  EXPECT_LT(est.frf.freq_hz.back(), 405.0);
+  EXPECT_GT(est.frf.freq_hz.back(), 350.0);
+  const NoiseStats s = compare(est.frf, c.truth_at(est.frf.freq_hz));
+  report("closed loop, second sweep cut short, Welch", s);
+  EXPECT_GT(s.mean, 0.8);
+  EXPECT_LT(s.mean, 1.25);
+  EXPECT_LT(s.worst, 1.4) << s.worst_entry;
+}
+
 TEST(FrfEstimation, HvAgreesWithTheReferenceEstimateAtHighSignalToNoise) {
   const ClosedLoop c = simulate_closed_loop(ExcitationType::random, 1 << 15, 1e-8, 0.01);
   FrfEstimationOptions opt;
