@@ -57,7 +57,7 @@ const char* kUsage =
     "  --domain D           DDS domain id (default 0 or the config's)\n"
     "  --partition NAME     DDS partition, one per site (default \"site\")\n"
     "  --pump ID            pump id (default: the recording's)\n"
-    "  --spool-dir DIR      store-and-forward folder (default ./ambdiag-spool)\n"
+    "  --spool-dir DIR      store-and-forward folder (default ./ambdiag-spool), one agent per folder\n"
     "  --spool-limit BYTES  bound on the spool's disk use (default 1 GiB)\n"
     "  --block-frames N     frames per sample block (default 512)\n"
     "  --timeout S          give up after S seconds without progress (default 60)\n"
@@ -199,12 +199,14 @@ int run(const Cli& c) {
 
   if (c.command == "forward") {
     if (!c.positional.empty()) throw UsageError("forward takes no positional arguments");
+    const agent::SpoolLock lock(cfg.spool_dir);
     stream::AgentEndpoints ep(cfg.domain, cfg.partition);
     return forward_backlog(ep, cfg, opt) ? 0 : 1;
   }
   if (c.command == "replay") {
     if (c.positional.size() != 1) throw UsageError("replay needs exactly one RUN_DIR");
     RunRecording run = read_run(c.positional[0]);
+    const agent::SpoolLock lock(cfg.spool_dir);
     stream::AgentEndpoints ep(cfg.domain, cfg.partition);
     forward_backlog(ep, cfg, opt);
     return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
@@ -230,6 +232,7 @@ int run(const Cli& c) {
   sim.seed = c.has("--seed") ? static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40)) : sc.seed;
   const long long runs = c.has("--runs") ? integer_option(c, "--runs", 0, 1000000) : cfg.runs;
   const PlantModel plant = read_plant_file(cfg.model);
+  const agent::SpoolLock lock(cfg.spool_dir);
   agent::PumpSimulator simulator(plant, sim);
   const AmbLoopReport& loop = simulator.loop().report();
   std::fprintf(stderr,

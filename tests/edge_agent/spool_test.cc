@@ -1,6 +1,7 @@
 #include "ambdiag/edge_agent/spool.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -31,6 +32,24 @@ size_t files_in(const fs::path& dir) {
   for (const auto& e : fs::recursive_directory_iterator(dir))
     if (e.is_regular_file()) ++n;
   return n;
+}
+
+TEST(SpoolLock, ASecondHolderOfTheFolderIsRefusedNamingItAndTheFirstPid) {
+  const fs::path dir = ambdiag::testing::scratch_dir() / "spool";
+  {
+    const SpoolLock first(dir);
+    try {
+      const SpoolLock second(dir);
+      ADD_FAILURE() << "a second lock on " << dir << " was granted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(dir.string()), std::string::npos) << msg;
+      EXPECT_NE(msg.find("in use by another ambdiag-agent (pid " + std::to_string(::getpid()) + ")"), std::string::npos)
+          << msg;
+    }
+  }
+  // Released with its owner: the folder can be taken again.
+  EXPECT_NO_THROW(SpoolLock again(dir));
 }
 
 TEST(Spool, WritesEveryBlockToDiskKeepsTheFirstInMemoryAndReadsThemBack) {

@@ -34,6 +34,49 @@ class SpoolRestartTest : public StreamTest {
   }
 };
 
+// (0) Two agents given one spool folder: the second is refused at once
+// (exit 3, naming the folder and the first agent's pid) and the first
+// streams its run to the end; an agent killed with -9 frees the folder.
+TEST_F(SpoolRestartTest, ASecondAgentOnTheSameSpoolFolderIsRefusedAndTheFirstCompletes) {
+  auto server = start_server();
+  const fs::path first_run = short_run(3.0, "LOCK/1"), second_run = short_run(0.5, "LOCK/2");
+  auto first = start_agent(first_run);  // paced: 3 s of streaming
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!fs::exists(spool / "agent.lock") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(20ms);
+  auto second = start_agent(second_run, {"--fast"});
+  ASSERT_EQ(second->wait(20s), 3) << second->log();
+  EXPECT_NE(second->log().find("spool folder " + spool.string() + " is in use by another ambdiag-agent (pid " +
+                               std::to_string(first->pid()) + ")"),
+            std::string::npos)
+      << second->log();
+  ASSERT_EQ(first->wait(60s), 0) << first->log() << "\n--- server ---\n" << server->log();
+  const auto info = find_run("LOCK/1");
+  ASSERT_TRUE(info);
+  EXPECT_EQ(info->status, storage::RunStatus::complete) << info->status_reason;
+  EXPECT_FALSE(find_run("LOCK/2"));
+
+  // No server now: a third agent takes the folder and waits for one; kill -9
+  // it there. The kernel drops its lock: a fourth agent gets the folder.
+  server->signal(SIGTERM);
+  ASSERT_EQ(server->wait(15s), 0) << server->log();
+  auto third = start_agent(second_run, {"--fast", "--timeout", "60"});
+  const auto holding = std::chrono::steady_clock::now() + 20s;
+  while (third->log().find("run LOCK/2 of pump") == std::string::npos && std::chrono::steady_clock::now() < holding)
+    std::this_thread::sleep_for(20ms);
+  ASSERT_NE(third->log().find("run LOCK/2 of pump"), std::string::npos) << third->log();
+  third->signal(SIGKILL);
+  ASSERT_EQ(third->wait(5s), -SIGKILL);
+  server = start_server();
+  auto fourth = start_agent(second_run, {"--fast", "--timeout", "60"});
+  EXPECT_EQ(fourth->wait(60s), 0) << fourth->log();
+  server->signal(SIGTERM);
+  ASSERT_EQ(server->wait(15s), 0) << server->log();
+  const auto second_info = find_run("LOCK/2");
+  ASSERT_TRUE(second_info);
+  EXPECT_EQ(second_info->status, storage::RunStatus::complete) << second_info->status_reason;
+}
+
 // (1) kill -9 while the server is down and the spool holds the run; then
 // the server, then a new agent: the run is complete, stored once, equal to
 // the recording sample for sample, and the spool is empty.
@@ -58,7 +101,10 @@ TEST_F(SpoolRestartTest, RunSpooledByAKilledAgentIsForwardedByTheNextOneExactlyO
   EXPECT_EQ(info->received_frames, frames);
   EXPECT_EQ(info->received_chunks, (frames + 511) / 512);
   EXPECT_TRUE(stored_samples(rec.run_id) == read_file_bytes((run_dir / "samples.f32").string()));
-  EXPECT_TRUE(fs::is_empty(spool)) << "the spool is removed once the server gave its verdict";
+  // The run's folder is removed once the server gave its verdict; the
+  // agents' lock file (agent.lock) stays.
+  for (const auto& e : fs::directory_iterator(spool))
+    EXPECT_EQ(e.path().filename(), "agent.lock") << "left in the spool: " << e.path();
 }
 
 // (2) a spool whose last block record was cut in the middle (a crash while

@@ -52,6 +52,23 @@ struct SpooledEnd {
   uint64_t checksum = 0;  // of the whole run, of the header's checksum_kind
 };
 
+// One agent process per spool folder: an advisory lock (flock) on
+// DIR/agent.lock, held while the owner lives and dropped by the kernel when
+// the process ends, also by kill -9. Two agents sharing a folder would
+// forward, and then delete, each other's runs.
+class SpoolLock {
+ public:
+  // Creates `dir` if missing. Throws InputError naming the folder and the
+  // holder's pid (written into the lock file) if another process holds it.
+  explicit SpoolLock(const std::filesystem::path& dir);
+  ~SpoolLock();
+  SpoolLock(const SpoolLock&) = delete;
+  SpoolLock& operator=(const SpoolLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 class Spool {
  public:
   // A new run: `dir` is created if missing; files an earlier agent left for
