@@ -37,6 +37,7 @@ nlohmann::json run_json(const storage::RunInfo& r, bool with_header) {
     char buf[24];  // hex string: JSON numbers lose 64-bit precision in many clients
     std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(*r.expected_checksum));
     j["expected_checksum"] = buf;
+    if (r.checksum_kind) j["checksum_kind"] = to_string(*r.checksum_kind);
   }
   if (r.ended_at) j["ended_at"] = *r.ended_at;
   if (with_header) j["header"] = nlohmann::json::parse(r.header_json);

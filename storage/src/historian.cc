@@ -43,11 +43,13 @@ RunStatus status_from_text(const std::string& s) {
 
 namespace {
 
-// The run columns in the order read_run_row expects.
+// The run columns in the order read_run_row expects (kRunColumns of them).
 #define AMBDIAG_RUN_COLUMNS                                                                                  \
   "run_id, pump_id, kind, started_at, speed_rpm, sample_rate_hz, n_channels, status, status_reason, "       \
   "expected_frames, expected_checksum, received_chunks, received_frames, duplicate_chunks, created_at, " \
-  "updated_at, ended_at"
+  "updated_at, ended_at, checksum_kind"
+
+constexpr int kRunColumns = 18;
 
 RunInfo read_run_row(const Stmt& s) {
   RunInfo r;
@@ -68,6 +70,7 @@ RunInfo read_run_row(const Stmt& s) {
   r.created_at = s.col_text(14);
   r.updated_at = s.col_text(15);
   r.ended_at = s.col_opt_text(16);
+  if (auto k = s.col_opt_text(17)) r.checksum_kind = checksum_kind_from(*k);
   return r;
 }
 
@@ -282,14 +285,15 @@ EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frame
   const std::string now = now_utc();
   impl_->stmt(
           "UPDATE runs SET status = ?, status_reason = ?, expected_frames = ?, expected_checksum = ?, ended_at = ?, "
-          "updated_at = ? WHERE run_id = ?")
+          "updated_at = ?, checksum_kind = ? WHERE run_id = ?")
       .bind(1, to_string(r.status))
       .bind(2, r.reason)
       .bind(3, total_frames)
       .bind(4, std::bit_cast<std::int64_t>(checksum))
       .bind(5, now)
       .bind(6, now)
-      .bind(7, run_id)
+      .bind(7, std::string(to_string(kind)))
+      .bind(8, run_id)
       .run();
   tx.commit();
   return r;
@@ -353,7 +357,7 @@ std::optional<RunInfo> Historian::find_run(const std::string& run_id) {
   s.bind(1, run_id);
   if (!s.step()) return std::nullopt;
   RunInfo r = read_run_row(s);
-  r.header_json = s.col_text(17);
+  r.header_json = s.col_text(kRunColumns);
   s.reset();
   return r;
 }

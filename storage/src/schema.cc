@@ -144,6 +144,12 @@ CREATE TABLE monitoring_snapshots (
   PRIMARY KEY (pump_id, time_ns)
 ) STRICT, WITHOUT ROWID;
 )sql"},
+    // v3: how the run end's checksum is computed (core/checksum.h names), so
+    // that expected_checksum can be checked by a reader; NULL for runs that
+    // ended before v3 (their kind was not kept).
+    {3, R"sql(
+ALTER TABLE runs ADD COLUMN checksum_kind TEXT CHECK (checksum_kind IS NULL OR checksum_kind IN ('fnv1a64', 'xxh64'));
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -32,6 +32,7 @@ TEST_F(StreamTest, ReplayedRunIsStoredByteForByteAndVerified) {
   const auto run = http.Get("/api/v1/runs/" + server::url_encode_segment(rec.run_id));
   ASSERT_TRUE(run);
   EXPECT_EQ(nlohmann::json::parse(run->body).at("status"), "complete") << run->body;
+  EXPECT_EQ(nlohmann::json::parse(run->body).at("checksum_kind"), "xxh64") << run->body;  // protocol 1.1
   server->signal(SIGTERM);
   ASSERT_EQ(server->wait(15s), 0) << server->log();
 

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/core/checksum.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/storage/historian.h"
 #include "ambdiag/storage/recording_io.h"
@@ -114,7 +115,12 @@ TEST_F(Rest, ARunByItsUrlEncodedIdHasItsStatusCountsAndHeader) {
   EXPECT_EQ(j["received_frames"], samples / (4 * j["n_channels"].get<std::size_t>()));
   EXPECT_EQ(j["header"], nlohmann::json::parse(read_file_bytes((ref_dir_ / "run.json").string())));
   EXPECT_EQ(j["samples_url"], runs_url(kRefRunId) + "/samples.f32");
-  EXPECT_EQ(j["expected_checksum"].get<std::string>().size(), 16u);
+  // The checksum names its kind, so a client can check a download with it.
+  EXPECT_EQ(j["checksum_kind"], "fnv1a64");
+  const std::string bytes = read_file_bytes((ref_dir_ / "samples.f32").string());
+  char want[24];
+  std::snprintf(want, sizeof want, "%016llx", static_cast<unsigned long long>(fnv1a64(bytes.data(), bytes.size())));
+  EXPECT_EQ(j["expected_checksum"], want);
   // The '/' left unencoded (':' too) still finds it.
   const auto raw = c.Get("/api/v1/runs/P-101/2026-11-21T10:00:00Z");
   ASSERT_TRUE(raw);

@@ -107,7 +107,7 @@ TEST(HistorianDigest, ADigestNotCoveringExactlyTheChunksHeldFallsBackToReading) 
   EXPECT_EQ(end.reason, "missing chunk seq 2");
 }
 
-TEST(HistorianSchema, AVersion1FileIsMigratedToVersion2KeepingItsRuns) {
+TEST(HistorianSchema, AVersion1FileIsMigratedToTheLatestKeepingItsRuns) {
   const auto path = db_path();
   const auto a = samples_bytes(300, 2, 7);
   {
@@ -116,16 +116,23 @@ TEST(HistorianSchema, AVersion1FileIsMigratedToVersion2KeepingItsRuns) {
     h.put_chunks("P-7/old", cut_chunks(a, 2, 100));
     h.end_run("P-7/old", 300, checksum_of(a));
   }
-  // Back to what migration 1 left: no monitoring table, user_version 1.
-  raw_exec(path, "DROP TABLE monitoring_snapshots; PRAGMA user_version = 1;");
+  // Back to what migration 1 left: no monitoring table, no checksum kind of
+  // the runs, user_version 1.
+  raw_exec(path, "DROP TABLE monitoring_snapshots; ALTER TABLE runs DROP COLUMN checksum_kind; PRAGMA user_version = 1;");
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
   {
     auto h = Historian::open(path);  // the writer migrates
-    EXPECT_EQ(h.find_run("P-7/old")->status, RunStatus::complete);
+    const auto old = h.find_run("P-7/old");
+    EXPECT_EQ(old->status, RunStatus::complete);
+    EXPECT_FALSE(old->checksum_kind);  // ended before v3: not known
     EXPECT_EQ(h.read_samples("P-7/old"), as_string(a));
+    h.begin_run(header("P-7/new", 2));
+    h.put_chunks("P-7/new", cut_chunks(a, 2, 100));
+    h.end_run("P-7/new", 300, checksum_of(a));
+    EXPECT_EQ(h.find_run("P-7/new")->checksum_kind, ChecksumKind::fnv1a64);
   }
-  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), 2);
-  EXPECT_EQ(Historian::schema_version(), 2);
+  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), 3);
+  EXPECT_EQ(Historian::schema_version(), 3);
   EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'monitoring_snapshots'"), 1);
   auto r = Historian::open(path, Historian::Mode::read);
   EXPECT_TRUE(r.list_monitoring("P-7", 0, 10).empty());

@@ -170,6 +170,18 @@ TEST(Historian, ChecksumMismatchMarksTheRunIncompleteWithTheReason) {
   EXPECT_EQ(info->status, RunStatus::incomplete);
   EXPECT_EQ(info->status_reason, end.reason);
   EXPECT_EQ(info->expected_checksum, checksum_of(run.bytes) ^ 1u);
+  EXPECT_EQ(info->checksum_kind, ChecksumKind::fnv1a64);
+}
+
+TEST(Historian, TheRunEndsChecksumKindIsKept) {
+  auto h = Historian::open(db_path());
+  const TestRun run = make_run("P-7/k", 400, 2, 6);
+  h.begin_run(run.header);
+  h.put_chunks("P-7/k", cut_chunks(run.bytes, 2, 64));
+  EXPECT_FALSE(h.find_run("P-7/k")->checksum_kind);  // no end yet
+  h.end_run("P-7/k", 400, 12345u, std::nullopt, ChecksumKind::xxh64);
+  EXPECT_EQ(h.find_run("P-7/k")->checksum_kind, ChecksumKind::xxh64);
+  EXPECT_EQ(h.find_run("P-7/k")->expected_checksum, 12345u);
 }
 
 TEST(Historian, MissingChunkMarksIncompleteAndALateChunkCompletesTheRun) {

@@ -83,6 +83,7 @@ struct RunInfo {
   std::string status_reason;  // why incomplete; empty otherwise
   std::optional<std::int64_t> expected_frames;     // from the run end
   std::optional<std::uint64_t> expected_checksum;  // from the run end
+  std::optional<ChecksumKind> checksum_kind;       // of expected_checksum (none: ended before schema v3)
   std::int64_t received_chunks = 0;
   std::int64_t received_frames = 0;
   std::int64_t duplicate_chunks = 0;
