@@ -108,6 +108,13 @@ Spool::Spool(const fs::path& dir, const std::string& run_id, uint64_t limit_byte
     : Spool(dir / folder_name(run_id), limit_bytes, memory_blocks) {
   fs::create_directories(run_dir_);
   for (const auto& e : fs::directory_iterator(run_dir_)) fs::remove(e.path());
+  // The segments other runs left in the folder count against the limit too.
+  for (const auto& run : pending_runs(dir)) {
+    if (run == run_dir_) continue;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(run, ec))
+      if (e.path().extension() == ".log" && e.is_regular_file(ec)) others_bytes_ += e.file_size(ec);
+  }
 }
 
 Spool::~Spool() { close_segment(); }
@@ -175,7 +182,7 @@ void Spool::write_end(const SpooledEnd& e) {
 }
 
 bool Spool::has_room(size_t payload_bytes) const {
-  return disk_bytes_ + kRecordHeader + payload_bytes <= limit_bytes_;
+  return folder_disk_bytes() + kRecordHeader + payload_bytes <= limit_bytes_;
 }
 
 bool Spool::put(const Block& b) {

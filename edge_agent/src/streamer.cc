@@ -139,7 +139,7 @@ class RunStream {
     s.protocol_version = stream::kProtocolVersion;
     s.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
     s.run_id = const_cast<char*>(hdr_.run_id.c_str());
-    s.spool_bytes = spool_.disk_bytes();
+    s.spool_bytes = spool_.folder_disk_bytes();
     s.spool_limit_bytes = spool_.limit_bytes();
     s.spool_full = spool_full_;
     s.blocks_pending = produced_ - acked_count_;
@@ -206,7 +206,7 @@ class RunStream {
       if (!spool_.put(std::move(*pending_))) {  // moves only if stored
         if (!spool_full_)
           std::fprintf(stderr, "ambdiag-agent: spool full (%llu of %llu bytes on disk): source paused\n",
-                       static_cast<unsigned long long>(spool_.disk_bytes()),
+                       static_cast<unsigned long long>(spool_.folder_disk_bytes()),
                        static_cast<unsigned long long>(spool_.limit_bytes()));
         spool_full_ = true;
         break;

@@ -92,6 +92,37 @@ TEST(Spool, RefusesBlocksBeyondItsDiskLimitAndAcceptsAgainAfterErase) {
   EXPECT_TRUE(spool.put(make_block(3, block_bytes)));
 }
 
+// The limit bounds the folder, not each run: runs an earlier agent left
+// behind (the server away for a long time) count, so a new run gets what is
+// left, and all of it again once they are forwarded.
+TEST(Spool, RunsLeftInTheFolderCountAgainstTheLimit) {
+  const fs::path dir = ambdiag::testing::scratch_dir();
+  const size_t block_bytes = 300 * 1024;
+  {
+    Spool left(dir, "run a", 1 << 20, 1);
+    left.write_header(SpooledHeader{"run a", "P-1", "{}", 1, 1000.0, 10});
+    ASSERT_TRUE(left.put(make_block(0, block_bytes)));
+    ASSERT_TRUE(left.put(make_block(1, block_bytes)));
+  }  // the agent is gone; its run stays on disk
+  Spool next(dir, "run b", 1 << 20, 1);
+  next.write_header(SpooledHeader{"run b", "P-1", "{}", 1, 1000.0, 10});
+  EXPECT_GT(next.folder_disk_bytes(), 2 * block_bytes);
+  int64_t s = 0;
+  while (next.put(make_block(s, block_bytes))) ++s;
+  EXPECT_EQ(s, 1);  // 3 records of 300 KiB fit in 1 MiB, 2 are run a's
+  EXPECT_LE(next.folder_disk_bytes(), next.limit_bytes());
+
+  for (const auto& run : Spool::pending_runs(dir)) {
+    std::vector<std::string> problems;
+    const auto held = Spool::recover(run, 1 << 20, 1, problems);
+    if (held->header()->run_id == "run a") held->remove();  // forwarded
+  }
+  Spool again(dir, "run c", 1 << 20, 1);
+  EXPECT_EQ(again.folder_disk_bytes(), next.disk_bytes());  // run b's block only
+  EXPECT_TRUE(again.put(make_block(0, block_bytes)));
+  EXPECT_TRUE(again.put(make_block(1, block_bytes)));
+}
+
 TEST(Spool, DetectsADamagedSpoolFile) {
   const fs::path dir = ambdiag::testing::scratch_dir();
   Spool spool(dir, "run", 1 << 20, 0);

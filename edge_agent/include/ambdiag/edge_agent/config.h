@@ -49,7 +49,7 @@ struct AgentConfig {
   // of protocol 1.0, which knows no other (docs/streaming.md).
   std::string checksum = "xxh64";
   std::string spool_dir = "ambdiag-spool";
-  uint64_t spool_limit_bytes = 1ull << 30;
+  uint64_t spool_limit_bytes = 1ull << 30;  // segments on disk in the whole spool folder, all runs
   uint32_t memory_blocks = 256;        // unacknowledged blocks kept in memory before the disk
   uint32_t block_frames = 512;         // frames per sample block
 };

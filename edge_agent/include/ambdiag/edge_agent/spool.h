@@ -10,8 +10,11 @@
 // leaves the spool when the server acknowledges it as committed; a segment
 // whose blocks are all acknowledged is deleted, and the folder when the
 // server gave its verdict on the whole run (remove()). put() refuses a block
-// when the segments on disk would exceed `limit_bytes`; the caller then
-// pauses its source and reports the spool full in its status.
+// when the segments on disk, of this run and of the runs left in the same
+// folder by earlier agents, would exceed `limit_bytes`; the caller then
+// pauses its source and reports the spool full in its status. The folder's
+// other runs are measured when the spool is made: one agent holds a folder
+// (SpoolLock) and works on one run at a time, so they do not grow meanwhile.
 //
 // A restarted agent lists the folders left behind (pending_runs) and opens
 // each with recover(), which reads the header, the end if any and every
@@ -115,7 +118,10 @@ class Spool {
 
   size_t size() const { return index_.size(); }
   size_t memory_blocks() const { return memory_.size(); }
-  uint64_t disk_bytes() const { return disk_bytes_; }
+  uint64_t disk_bytes() const { return disk_bytes_; }  // this run's segments
+  // Segments on disk in the whole folder (this run's and the others'): what
+  // `limit_bytes` bounds.
+  uint64_t folder_disk_bytes() const { return disk_bytes_ + others_bytes_; }
   uint64_t limit_bytes() const { return limit_bytes_; }
   const std::filesystem::path& folder() const { return run_dir_; }
 
@@ -151,6 +157,7 @@ class Spool {
   bool dirty_ = false;
   std::chrono::steady_clock::time_point last_sync_{};
   uint64_t disk_bytes_ = 0;
+  uint64_t others_bytes_ = 0;  // segments of the other runs in the folder
 };
 
 }  // namespace ambdiag::agent
