@@ -45,7 +45,7 @@ TEST(ProcessMemory, FreedBlocksOfSeveralMegabytesStayWithTheProcess) {
   ambdiag::retain_freed_memory();
   // Below the mmap threshold and within the trim threshold: kept whole
   // (with glibc's defaults a 4 MiB block is mapped and unmapped on free).
-  for (const size_t mib : {4, 24}) {
+  for (const size_t mib : {4, 12}) {
     retained_after_free(mib << 20);
     EXPECT_GE(free_heap_bytes(), mib << 20) << mib << " MiB";
   }
@@ -54,9 +54,9 @@ TEST(ProcessMemory, FreedBlocksOfSeveralMegabytesStayWithTheProcess) {
 TEST(ProcessMemory, BlocksAboveTheMmapThresholdGoBackToTheKernel) {
   if (!kGlibcMalloc) GTEST_SKIP() << "malloc is not glibc's (sanitizer build)";
   ambdiag::retain_freed_memory();
-  // What the process keeps is bounded: a block above 32 MiB is mapped and
+  // What the process keeps is bounded: a block above 16 MiB is mapped and
   // returned whole on free.
-  EXPECT_LT(retained_after_free(std::size_t{48} << 20), std::size_t{48} << 20);
+  EXPECT_LT(retained_after_free(std::size_t{24} << 20), std::size_t{24} << 20);
 }
 
 }  // namespace

@@ -15,13 +15,14 @@
 
 namespace ambdiag {
 
-// Blocks up to 32 MiB come from the heap, and up to 64 MiB of free heap
+// Blocks up to 16 MiB come from the heap, and up to 32 MiB of free heap
 // top stays with the process for reuse (glibc mallopt M_MMAP_THRESHOLD,
-// M_TRIM_THRESHOLD; a no-op with other C libraries). Call before any
-// threads start.
+// M_TRIM_THRESHOLD; a no-op with other C libraries). Bounded: glibc keeps
+// at most 8 arenas per core, so a server holds at most 32 MiB of freed
+// memory per arena. Call before any threads start.
 void retain_freed_memory();
 
-inline constexpr std::size_t kMmapThresholdBytes = std::size_t{32} << 20;
-inline constexpr std::size_t kTrimThresholdBytes = std::size_t{64} << 20;
+inline constexpr std::size_t kMmapThresholdBytes = std::size_t{16} << 20;
+inline constexpr std::size_t kTrimThresholdBytes = std::size_t{32} << 20;
 
 }  // namespace ambdiag
