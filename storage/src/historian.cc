@@ -1,11 +1,13 @@
 #include "ambdiag/storage/historian.h"
 
+#include <algorithm>
 #include <bit>
 #include <chrono>
 #include <cstring>
 #include <ctime>
 #include <limits>
 #include <stdexcept>
+#include <string_view>
 #include <unordered_map>
 
 #include <nlohmann/json.hpp>
@@ -49,7 +51,10 @@ namespace {
   "expected_frames, expected_checksum, received_chunks, received_frames, duplicate_chunks, created_at, " \
   "updated_at, ended_at, checksum_kind"
 
-constexpr int kRunColumns = 18;
+// Counted from the list, so a column added there moves what follows it
+// (find_run's header) with it.
+constexpr int kRunColumns = static_cast<int>(std::ranges::count(std::string_view(AMBDIAG_RUN_COLUMNS), ',')) + 1;
+static_assert(kRunColumns == 18, "read_run_row reads columns 0..17");
 
 RunInfo read_run_row(const Stmt& s) {
   RunInfo r;
