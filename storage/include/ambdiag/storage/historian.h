@@ -27,10 +27,12 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/monitoring.h"
+#include "ambdiag/storage/service.h"
 
 namespace ambdiag::storage {
 
@@ -204,6 +206,67 @@ class Historian {
   // the Historian. Call once, on a Mode::write historian.
   void checkpoint_in_background(int trigger_pages = 1000);
   CheckpointStats checkpoint_stats() const;  // zeros when not started
+
+  // --- pumps: models and references (service.h; historian_registry.cc) ---
+  // A new model version of the pump (registered if new): 1 for the first.
+  // The text is stored as given; the caller has checked that it parses.
+  int put_model(const std::string& pump_id, const std::string& plant_json, const std::string& created_by,
+                const std::string& comment = "");
+  // That version, or the newest when `version` is empty; nullopt if none.
+  std::optional<ModelVersion> find_model(const std::string& pump_id, std::optional<int> version = std::nullopt);
+  // Every version, oldest first, without plant_json.
+  std::vector<ModelVersion> list_models(const std::string& pump_id);
+  // A new reference version of the pump. Throws InputError naming the run
+  // when a run is unknown, of another pump, not `complete`, not of kind
+  // `identification`, or listed twice, or when the list is empty.
+  int put_reference(const std::string& pump_id, const std::vector<std::string>& run_ids,
+                    const std::string& created_by);
+  std::optional<ReferenceVersion> find_reference(const std::string& pump_id,
+                                                 std::optional<int> version = std::nullopt);
+
+  // --- jobs (service.h; historian_jobs.cc) ---
+  // A job with this key, queued, unless one exists already (any status):
+  // returns its id and whether it was created now.
+  std::pair<std::int64_t, bool> enqueue_job(const JobKey& key, const std::string& params_json = "{}",
+                                            std::optional<std::int64_t> depends_on = std::nullopt);
+  // The oldest queued job whose dependency is done (a job depending on a
+  // failed or cancelled job fails with that reason instead), now running
+  // under `worker` with attempts + 1. kinds: only these kinds (empty: any).
+  std::optional<Job> claim_job(const std::string& worker, const std::vector<std::string>& kinds = {});
+  // Progress of the running attempt; false (nothing changed) when the job
+  // is no longer running that attempt.
+  bool set_job_progress(std::int64_t job_id, int attempt, double progress);
+  // The attempt's result and files, stored in one transaction with the
+  // status `done`. False, storing nothing, when that attempt no longer
+  // holds the job (requeued, cancelled, another attempt): a result is
+  // stored once.
+  bool finish_job(std::int64_t job_id, int attempt, const std::string& result_json,
+                  const std::vector<JobArtifact>& artifacts = {});
+  bool fail_job(std::int64_t job_id, int attempt, const std::string& error);
+  // Jobs left `running` (a server that died): `queued` again. Returns how many.
+  int requeue_running_jobs();
+  // Queued jobs of the pump and kind whose model or reference version is
+  // older than given: `cancelled` (superseded). Returns how many.
+  int cancel_superseded_jobs(const std::string& pump_id, const std::string& kind, int model_version,
+                             int reference_version);
+  bool cancel_job(std::int64_t job_id, const std::string& reason);
+  std::optional<Job> find_job(std::int64_t job_id);
+  std::optional<Job> find_job(const JobKey& key);
+  std::vector<Job> list_jobs(const JobFilter& filter);
+  std::int64_t count_jobs(JobStatus status);
+  // A done job's file, nullopt when it has none of that name.
+  std::optional<JobArtifact> find_artifact(std::int64_t job_id, const std::string& name);
+  std::vector<std::string> list_artifacts(std::int64_t job_id);
+
+  // --- API tokens (service.h; historian_tokens.cc) ---
+  // Creates a token of that role and returns its secret (shown once; only
+  // its SHA-256 is stored). Throws InputError for an empty or taken name.
+  std::string add_token(const std::string& name, Role role);
+  // The token's holder, nullopt for an unknown or revoked secret.
+  std::optional<TokenInfo> find_token(const std::string& secret);
+  std::vector<TokenInfo> list_tokens();
+  // False when no active token has that name.
+  bool revoke_token(const std::string& name);
 
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
