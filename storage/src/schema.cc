@@ -150,6 +150,83 @@ CREATE TABLE monitoring_snapshots (
     {3, R"sql(
 ALTER TABLE runs ADD COLUMN checksum_kind TEXT CHECK (checksum_kind IS NULL OR checksum_kind IN ('fnv1a64', 'xxh64'));
 )sql"},
+    // v4: the service store (storage/service.h). Pumps' plant models and
+    // references, every version kept; the job queue with its results and
+    // files; API tokens by their SHA-256. v1's `jobs` never held a row (no
+    // program wrote it): replaced by the queue's own table. Jobs name pumps
+    // and runs without foreign keys: a job's row is its history and outlives
+    // nothing it points to, and an enqueue must not fail on a constraint.
+    {4, R"sql(
+DROP TABLE jobs;
+
+CREATE TABLE models (
+  pump_id     TEXT NOT NULL REFERENCES pumps(pump_id),
+  version     INTEGER NOT NULL CHECK (version >= 1),
+  plant_json  TEXT NOT NULL,
+  created_at  TEXT NOT NULL,
+  created_by  TEXT NOT NULL DEFAULT '',
+  comment     TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY (pump_id, version)
+) STRICT;
+
+CREATE TABLE pump_references (
+  pump_id     TEXT NOT NULL REFERENCES pumps(pump_id),
+  version     INTEGER NOT NULL CHECK (version >= 1),
+  created_at  TEXT NOT NULL,
+  created_by  TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY (pump_id, version)
+) STRICT, WITHOUT ROWID;
+
+CREATE TABLE reference_runs (
+  pump_id  TEXT NOT NULL,
+  version  INTEGER NOT NULL,
+  idx      INTEGER NOT NULL CHECK (idx >= 0),
+  run_id   TEXT NOT NULL REFERENCES runs(run_id),
+  PRIMARY KEY (pump_id, version, idx),
+  UNIQUE (pump_id, version, run_id),
+  FOREIGN KEY (pump_id, version) REFERENCES pump_references(pump_id, version)
+) STRICT, WITHOUT ROWID;
+
+CREATE TABLE jobs (
+  job_id             INTEGER PRIMARY KEY AUTOINCREMENT,
+  kind               TEXT NOT NULL CHECK (kind <> ''),
+  pump_id            TEXT NOT NULL CHECK (pump_id <> ''),
+  run_id             TEXT NOT NULL DEFAULT '',
+  model_version      INTEGER NOT NULL DEFAULT 0,
+  reference_version  INTEGER NOT NULL DEFAULT 0,
+  status             TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed', 'cancelled')),
+  progress           REAL NOT NULL DEFAULT 0 CHECK (progress >= 0 AND progress <= 1),
+  attempts           INTEGER NOT NULL DEFAULT 0 CHECK (attempts >= 0),
+  params             TEXT NOT NULL DEFAULT '{}',
+  depends_on         INTEGER REFERENCES jobs(job_id),
+  created_at         TEXT NOT NULL,
+  started_at         TEXT,
+  finished_at        TEXT,
+  error              TEXT,
+  result             TEXT,
+  worker             TEXT NOT NULL DEFAULT '',
+  UNIQUE (kind, pump_id, run_id, model_version, reference_version)
+) STRICT;
+CREATE INDEX jobs_by_status ON jobs(status, job_id);
+CREATE INDEX jobs_by_pump ON jobs(pump_id, job_id);
+CREATE INDEX jobs_by_run ON jobs(run_id, job_id);
+
+CREATE TABLE job_artifacts (
+  job_id        INTEGER NOT NULL REFERENCES jobs(job_id) ON DELETE CASCADE,
+  name          TEXT NOT NULL CHECK (name <> ''),
+  content_type  TEXT NOT NULL,
+  data          BLOB NOT NULL,
+  PRIMARY KEY (job_id, name)
+) STRICT;
+
+CREATE TABLE tokens (
+  name        TEXT PRIMARY KEY,
+  role        TEXT NOT NULL CHECK (role IN ('viewer', 'operator', 'engineer', 'admin')),
+  sha256      BLOB NOT NULL UNIQUE CHECK (length(sha256) = 32),
+  created_at  TEXT NOT NULL,
+  revoked_at  TEXT
+) STRICT;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -26,6 +26,18 @@ inline std::string run_json_text(const std::string& run_id, int n_channels, cons
   return j.dump(2);
 }
 
+// The run.json text of an identification run (a one-segment multisine).
+inline std::string identification_json_text(const std::string& run_id, const std::string& pump_id, int n_channels = 2) {
+  auto j = nlohmann::json::parse(run_json_text(run_id, n_channels, pump_id));
+  j["kind"] = "identification";
+  j["excitation"] = {{"type", "multisine"},
+                     {"period_samples", 100},
+                     {"f_min_hz", 1.0},
+                     {"f_max_hz", 400.0},
+                     {"segments", {{{"start", 0}, {"periods", 3}, {"settle_periods", 1}, {"pattern", 0}}}}};
+  return j.dump(2);
+}
+
 // A run's samples.f32 bytes: n_frames x n_channels seeded float32 values.
 inline std::vector<std::uint8_t> samples_bytes(std::int64_t n_frames, int n_channels, unsigned seed) {
   std::mt19937 rng(seed);
