@@ -26,6 +26,7 @@ std::vector<Command> estimate_commands();
 std::vector<Command> fit_commands();
 std::vector<Command> serve_commands();
 std::vector<Command> db_commands();
+std::vector<Command> token_commands();
 std::vector<Command> explain_commands();
 std::vector<Command> diagnose_commands();
 

@@ -20,6 +20,7 @@ std::vector<Command> all_commands() {
   for (auto&& family : {ambdiag::cli::model_commands(), ambdiag::cli::convert_commands(),
                        ambdiag::cli::fit_commands(), ambdiag::cli::estimate_commands(),
                        ambdiag::cli::serve_commands(), ambdiag::cli::db_commands(),
+                       ambdiag::cli::token_commands(),
                        ambdiag::cli::explain_commands(),
                        ambdiag::cli::diagnose_commands()})
     all.insert(all.end(), family.begin(), family.end());
