@@ -86,7 +86,7 @@ char kill_child_after_report(pid_t child, int fd) {
   return c;
 }
 
-TEST(JobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOrFiles) {
+TEST(HistorianJobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOrFiles) {
   const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
   constexpr int kJobs = 30, kFinished = 10;
   enqueue_jobs(path, kJobs);
@@ -140,7 +140,7 @@ TEST(JobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOrFiles) {
   EXPECT_EQ(check_each_job_all_or_nothing(h), kFinished + 1);
 }
 
-TEST(JobsCrash, KilledAtAnyTimeInALoopOfFinishesEveryJobIsAllOrNothing) {
+TEST(HistorianJobsCrash, KilledAtAnyTimeInALoopOfFinishesEveryJobIsAllOrNothing) {
   const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
   constexpr int kJobs = 400;
   enqueue_jobs(path, kJobs);

@@ -45,7 +45,7 @@ JobFilter filter(std::optional<std::string> pump_id, std::optional<std::string> 
   return f;
 }
 
-TEST(Jobs, EnqueueIsIdempotentOnTheKey) {
+TEST(HistorianJobs, EnqueueIsIdempotentOnTheKey) {
   auto h = Historian::open(db_path());
   const auto [id, created] = h.enqueue_job(analysis("r1"), R"({"speed_rpm": 3000})");
   EXPECT_TRUE(created);
@@ -77,7 +77,7 @@ TEST(Jobs, EnqueueIsIdempotentOnTheKey) {
   EXPECT_EQ(h.count_jobs(JobStatus::queued), 6);
 }
 
-TEST(Jobs, EnqueueRefusesAnUnknownDependencyAndAnEmptyKey) {
+TEST(HistorianJobs, EnqueueRefusesAnUnknownDependencyAndAnEmptyKey) {
   auto h = Historian::open(db_path());
   EXPECT_THROW(h.enqueue_job(analysis("r1"), "{}", 42), InputError);
   EXPECT_THROW(h.enqueue_job({"", "P-1", "r1", 1, 0}), InputError);
@@ -85,7 +85,7 @@ TEST(Jobs, EnqueueRefusesAnUnknownDependencyAndAnEmptyKey) {
   EXPECT_EQ(h.list_jobs({}).size(), 0u);
 }
 
-TEST(Jobs, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
+TEST(HistorianJobs, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
   auto h = Historian::open(db_path());
   const auto a = enqueue(h, analysis("r1"));
   const auto e = enqueue(h, {"explain", "P-1", "r1", 1, 0});
@@ -114,7 +114,7 @@ TEST(Jobs, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
   EXPECT_EQ(h.count_jobs(JobStatus::running), 3);
 }
 
-TEST(Jobs, AJobWaitsForItsDependencyAndOthersGoAhead) {
+TEST(HistorianJobs, AJobWaitsForItsDependencyAndOthersGoAhead) {
   auto h = Historian::open(db_path());
   const auto ref = enqueue(h, {"reference", "P-1", "", 1, 1});
   const auto dependent = enqueue(h, analysis("r1", 1, 1), ref);
@@ -136,7 +136,7 @@ TEST(Jobs, AJobWaitsForItsDependencyAndOthersGoAhead) {
   EXPECT_EQ(c3->job_id, dependent);
 }
 
-TEST(Jobs, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
+TEST(HistorianJobs, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
   auto h = Historian::open(db_path());
   const auto a = enqueue(h, {"reference", "P-1", "", 1, 1});
   const auto b = enqueue(h, analysis("r1", 1, 1), a);
@@ -163,7 +163,7 @@ TEST(Jobs, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
   EXPECT_EQ(h.count_jobs(JobStatus::failed), 4);
 }
 
-TEST(Jobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
+TEST(HistorianJobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
   auto h = Historian::open(db_path());
   const auto id = enqueue(h, analysis("r1"));
   const auto first = h.claim_job("server-1");
@@ -212,7 +212,7 @@ TEST(Jobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
   EXPECT_EQ(h.requeue_running_jobs(), 0);  // a done job is not requeued
 }
 
-TEST(Jobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
+TEST(HistorianJobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
   auto h = Historian::open(db_path());
   const auto id = enqueue(h, analysis("r1"));
   const auto c = h.claim_job("w");
@@ -223,7 +223,7 @@ TEST(Jobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
   EXPECT_THROW(h.set_job_progress(id, c->attempts, std::nan("")), InputError);
 }
 
-TEST(Jobs, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
+TEST(HistorianJobs, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
   auto h = Historian::open(db_path());
   const auto id = enqueue(h, analysis("r1"));
   const auto c = h.claim_job("w");
@@ -235,7 +235,7 @@ TEST(Jobs, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
   EXPECT_FALSE(h.claim_job("w"));  // failed is final
 }
 
-TEST(Jobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
+TEST(HistorianJobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
   const auto path = db_path();
   auto h = Historian::open(path);
   const auto id = enqueue(h, analysis("r1"));
@@ -274,7 +274,7 @@ TEST(Jobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
   EXPECT_FALSE(h.find_artifact(id + 1, "frf.csv"));
 }
 
-TEST(Jobs, RequeueTakesBackEveryRunningJobAndOnlyThose) {
+TEST(HistorianJobs, RequeueTakesBackEveryRunningJobAndOnlyThose) {
   auto h = Historian::open(db_path());
   for (int i = 0; i < 5; ++i) enqueue(h, analysis("r" + std::to_string(i)));
   const auto c1 = h.claim_job("w"), c2 = h.claim_job("w"), c3 = h.claim_job("w");
@@ -289,7 +289,7 @@ TEST(Jobs, RequeueTakesBackEveryRunningJobAndOnlyThose) {
   EXPECT_EQ(h.claim_job("w")->job_id, c2->job_id);
 }
 
-TEST(Jobs, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
+TEST(HistorianJobs, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
   auto h = Historian::open(db_path());
   const auto running = enqueue(h, analysis("r0", 1, 0));
   ASSERT_EQ(h.claim_job("w")->job_id, running);
@@ -312,7 +312,7 @@ TEST(Jobs, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
   EXPECT_EQ(h.cancel_superseded_jobs("P-1", "analysis", 2, 1), 0);
 }
 
-TEST(Jobs, CancelTakesAQueuedOrRunningJobAndNothingElse) {
+TEST(HistorianJobs, CancelTakesAQueuedOrRunningJobAndNothingElse) {
   auto h = Historian::open(db_path());
   const auto queued = enqueue(h, analysis("r1"));
   const auto running = enqueue(h, analysis("r2"));
@@ -338,7 +338,7 @@ TEST(Jobs, CancelTakesAQueuedOrRunningJobAndNothingElse) {
   EXPECT_FALSE(h.claim_job("w"));
 }
 
-TEST(Jobs, ListsNewestFirstByPumpRunKindAndStatus) {
+TEST(HistorianJobs, ListsNewestFirstByPumpRunKindAndStatus) {
   auto h = Historian::open(db_path());
   const auto a = enqueue(h, analysis("r1"));
   const auto b = enqueue(h, {"explain", "P-1", "r1", 1, 0});
@@ -366,7 +366,7 @@ TEST(Jobs, ListsNewestFirstByPumpRunKindAndStatus) {
   EXPECT_EQ(listed[0].key.model_version, 1);
 }
 
-TEST(Jobs, JobCallsInsideAWriteBatchJoinItAndRollBackWithIt) {
+TEST(HistorianJobs, JobCallsInsideAWriteBatchJoinItAndRollBackWithIt) {
   const auto path = db_path();
   auto h = Historian::open(path);
   const auto kept = enqueue(h, analysis("r0"));
@@ -392,7 +392,7 @@ TEST(Jobs, JobCallsInsideAWriteBatchJoinItAndRollBackWithIt) {
   EXPECT_EQ(r.count_jobs(JobStatus::queued), 2);
 }
 
-TEST(Jobs, AClaimFromAnotherConnectionWaitsForAnOpenBatchAndThenSucceeds) {
+TEST(HistorianJobs, AClaimFromAnotherConnectionWaitsForAnOpenBatchAndThenSucceeds) {
   const auto path = db_path();
   auto ingest = Historian::open(path);
   auto server = Historian::open(path);
@@ -417,7 +417,7 @@ TEST(Jobs, AClaimFromAnotherConnectionWaitsForAnOpenBatchAndThenSucceeds) {
   EXPECT_TRUE(ingest.find_run("P-1/r1"));
 }
 
-TEST(Jobs, TwoConnectionsClaimingAtOnceNeverTakeTheSameJob) {
+TEST(HistorianJobs, TwoConnectionsClaimingAtOnceNeverTakeTheSameJob) {
   const auto path = db_path();
   constexpr int kJobs = 200;
   {

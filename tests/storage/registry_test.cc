@@ -33,7 +33,7 @@ void store_run(Historian& h, const std::string& run_json, RunStatus status) {
   ASSERT_EQ(end.status, status) << end.reason;
 }
 
-TEST(Models, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
+TEST(HistorianModels, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
   auto h = Historian::open(db_path());
   EXPECT_FALSE(h.find_model("P-1"));
   EXPECT_TRUE(h.list_models("P-1").empty());
@@ -68,7 +68,7 @@ TEST(Models, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
   EXPECT_EQ(pump->n_runs, 0);
 }
 
-TEST(Models, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused) {
+TEST(HistorianModels, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused) {
   const auto path = db_path();
   auto h = Historian::open(path);
   h.put_model("P-1", "{}", "");
@@ -91,7 +91,7 @@ std::string input_error_of(F&& f) {
   return "";
 }
 
-TEST(References, OnlyCompleteIdentificationRunsOfThePumpEachOnce) {
+TEST(HistorianReferences, OnlyCompleteIdentificationRunsOfThePumpEachOnce) {
   auto h = Historian::open(db_path());
   store_run(h, identification_json_text("P-1/a", "P-1"), RunStatus::complete);
   store_run(h, identification_json_text("P-1/b", "P-1"), RunStatus::complete);

@@ -15,7 +15,7 @@ namespace {
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
-TEST(Tokens, ASecretFindsItsHolderAndRoleUntilRevoked) {
+TEST(HistorianTokens, ASecretFindsItsHolderAndRoleUntilRevoked) {
   const auto path = db_path();
   auto h = Historian::open(path);
   const auto secret = h.add_token("alice", Role::engineer);
@@ -60,7 +60,7 @@ TEST(Tokens, ASecretFindsItsHolderAndRoleUntilRevoked) {
   EXPECT_FALSE(h.list_tokens()[0].revoked_at);
 }
 
-TEST(Tokens, AnUnknownOrAlteredSecretFindsNobody) {
+TEST(HistorianTokens, AnUnknownOrAlteredSecretFindsNobody) {
   auto h = Historian::open(db_path());
   const auto secret = h.add_token("alice", Role::viewer);
   EXPECT_FALSE(h.find_token(""));
@@ -73,7 +73,7 @@ TEST(Tokens, AnUnknownOrAlteredSecretFindsNobody) {
   EXPECT_TRUE(h.find_token(secret));
 }
 
-TEST(Tokens, TheFileHoldsTheHashButNeverTheSecret) {
+TEST(HistorianTokens, TheFileHoldsTheHashButNeverTheSecret) {
   const auto path = db_path();
   std::string secret;
   {
@@ -91,7 +91,7 @@ TEST(Tokens, TheFileHoldsTheHashButNeverTheSecret) {
   EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM tokens WHERE length(sha256) = 32"), 1);
 }
 
-TEST(Tokens, NamesAreOneTo64SafeCharactersAndAnActiveNameIsTaken) {
+TEST(HistorianTokens, NamesAreOneTo64SafeCharactersAndAnActiveNameIsTaken) {
   auto h = Historian::open(db_path());
   for (const std::string& bad : {std::string(""), std::string(65, 'a'), std::string("a b"), std::string("x/y"),
                                 std::string("caf\xc3\xa9"), std::string("a\nb"), std::string("a'b")})
@@ -108,7 +108,7 @@ TEST(Tokens, NamesAreOneTo64SafeCharactersAndAnActiveNameIsTaken) {
   EXPECT_EQ(h.list_tokens()[0].role, Role::operator_);  // the refused add changed nothing
 }
 
-TEST(Tokens, RolesAndJobStatesHaveTheirNames) {
+TEST(HistorianTokens, RolesAndJobStatesHaveTheirNames) {
   for (auto r : {Role::viewer, Role::operator_, Role::engineer, Role::admin}) EXPECT_EQ(role_from(to_string(r)), r);
   EXPECT_EQ(to_string(Role::operator_), "operator");
   EXPECT_FALSE(role_from("root"));
