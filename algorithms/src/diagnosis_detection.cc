@@ -25,8 +25,6 @@ double Aligned::t_mean() const {
   return m;
 }
 
-namespace {
-
 // Real degrees of freedom of the measured sigma^2 (metadata `sigma_dof`,
 // written by `ambdiag frf`); infinity when the file states none.
 double sigma_dof(const FrfData& measured) {
@@ -58,6 +56,8 @@ void t_moments(double phi, double nu, double& mean, double& var) {
   mean = 2.0 * nu_eff / (nu_eff - 2.0);
   var = 4.0 * nu_eff * nu_eff * nu_eff / ((nu_eff - 2.0) * (nu_eff - 2.0) * (nu_eff - 4.0));
 }
+
+namespace {
 
 // A sum with mean mu and variance var as g chi2_h (Satterthwaite):
 // g = var / (2 mu), h = 2 mu^2 / var.
@@ -126,6 +126,8 @@ void detect(const Aligned& a, const DiagnosisOptions& opt, DiagnosisResult& res)
     total_mean += entry_mean[e];
     total_var += en.t_var;
   }
+  total_mean -= a.fitted_dof;
+  total_var -= 2.0 * a.fitted_dof;
   // T is chi2 with 2 x values degrees of freedom when sigma is exact;
   // otherwise the scaled chi2 with T's mean and variance.
   const ScaledChi2 dist(total_mean, total_var);

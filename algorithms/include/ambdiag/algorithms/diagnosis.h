@@ -87,6 +87,30 @@ struct FaultEstimate {
   int evaluations = 0;       // model FRF evaluations spent on it
 };
 
+// A fitted nuisance parameter of the operating-reference detection
+// (operating_reference.h): the log factor on one fluid-seal link's
+// coefficients, relative to the reference runs' mean state.
+struct NuisanceEstimate {
+  std::string link;         // link name
+  double log_factor = 0.0;  // ln(coefficient factor) - the references' mean
+  double sd = 0.0;          // of the estimate (noise)
+  double normal_sd = 0.0;   // the learnt run-to-run spread (with its floor)
+};
+
+// The two tests of the operating-reference detection; empty (used = false)
+// for the same-speed path.
+struct OperatingTests {
+  bool used = false;
+  double speed_rpm = 0.0;         // where the model was evaluated
+  double alpha_each = 0.0;        // per test, 1 - sqrt(1 - alpha)
+  double residual_p_value = 1.0;  // of the residual test (statistic, threshold, dof of the result)
+  bool residual_detected = false;
+  double drift_statistic = 0.0, drift_threshold = 0.0, drift_p_value = 1.0;
+  int drift_dof = 0;
+  bool drift_detected = false;
+  std::vector<NuisanceEstimate> nuisance;
+};
+
 struct DiagnosisResult {
   bool detected = false;
   double statistic = 0.0, threshold = 0.0, dof = 0.0, p_value = 1.0, alpha = 0.0;
@@ -99,6 +123,7 @@ struct DiagnosisResult {
   FrfData model_before, model_after;  // on the measured grid, for plots
   std::vector<std::string> not_assessed;  // faults without the data they need, with the reason
   int evaluations = 0;
+  OperatingTests operating;  // filled by diagnose(plant, OperatingReference, ...)
 };
 
 // Throws InputError if the measured FRF is on another grid or speed than

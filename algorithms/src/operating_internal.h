@@ -1,0 +1,49 @@
+// Private to the operating reference: the nuisance (log factors on the
+// fluid-seal links) and its fit to one run (operating_reference.h).
+#pragma once
+
+#include <complex>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ambdiag/algorithms/operating_reference.h"
+
+namespace ambdiag::operating_detail {
+
+using Values = std::vector<std::vector<std::complex<double>>>;  // [entry][line]
+
+// Indices of the links of kind `seal` and `balance_piston`.
+std::vector<int> nuisance_links(const PlantModel& plant);
+
+// The plant with link links[k]'s coefficients (and speed table) times exp(theta[k]).
+PlantModel with_nuisance(const PlantModel& plant, const std::vector<int>& links, const Eigen::VectorXd& theta);
+
+// Model FRF values of `plant` on the skeleton's grid, entries and speed,
+// with the diagnosis' synthesis (modal, Krylov basis, banded damping).
+Values model_values(const PlantModel& plant, const FrfData& skeleton);
+
+// What is fitted: measured H, weights 1 / sqrt(var), offset b, per entry.
+struct RunData {
+  FrfData skeleton;  // grid, speed, entry names
+  Values h, offset;
+  std::vector<std::vector<double>> weight;
+};
+
+struct NuisanceFit {
+  Eigen::VectorXd theta;        // fitted log factors
+  Eigen::MatrixXd cov;          // of theta (noise)
+  double chi2 = 0.0;            // sum |w (M(theta) + b - H)|^2
+  Values at_theta;              // M(s, theta)
+  Values at_zero;               // M(s, 0)
+  std::vector<Values> jacobian; // dM/dtheta_k at 0, FRF units, [k][entry][line]
+  int evaluations = 0;
+};
+
+// Levenberg-Marquardt with Broyden updates from a difference Jacobian at
+// theta = 0 (1 + K + iterations model FRFs). With no links, theta is empty
+// and chi2 that of M(s, 0).
+NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound);
+
+}  // namespace ambdiag::operating_detail

@@ -1,0 +1,305 @@
+// Learning the operating reference: the nuisance fitted per reference run,
+// the model's own error b, the normal spread of the nuisance and the noise
+// scale kappa (operating_reference.h).
+#include "ambdiag/algorithms/operating_reference.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "ambdiag/algorithms/chi_square.h"
+#include "ambdiag/algorithms/fault_models.h"
+#include "ambdiag/algorithms/frf_compare.h"
+#include "ambdiag/algorithms/frf_parameter_fit.h"
+#include "ambdiag/core/error.h"
+#include "operating_internal.h"
+
+namespace ambdiag {
+
+bool OperatingReferenceOptions::is_valid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(common_sd_floor > 0.0 && common_sd_floor < 1.0)) return fail("common_sd_floor must be in (0, 1)");
+  if (!(link_sd_floor > 0.0 && link_sd_floor < 1.0)) return fail("link_sd_floor must be in (0, 1)");
+  if (!(log_factor_bound > 0.0 && log_factor_bound <= 5.0)) return fail("log_factor_bound must be in (0, 5]");
+  if (!(alpha_scatter > 0.0 && alpha_scatter < 0.5)) return fail("alpha_scatter must be in (0, 0.5)");
+  if (passes < 1 || passes > 10) return fail("passes must be in 1..10");
+  return true;
+}
+
+const OperatingEntry* OperatingReference::find(const std::string& output, const std::string& input) const {
+  for (const auto& e : entries)
+    if (e.output == output && e.input == input) return &e;
+  return nullptr;
+}
+
+namespace operating_detail {
+
+std::vector<int> nuisance_links(const PlantModel& plant) {
+  std::vector<int> out;
+  for (size_t i = 0; i < plant.links.size(); ++i)
+    if (plant.links[i].kind == "seal" || plant.links[i].kind == "balance_piston") out.push_back(static_cast<int>(i));
+  return out;
+}
+
+PlantModel with_nuisance(const PlantModel& plant, const std::vector<int>& links, const Eigen::VectorXd& theta) {
+  PlantModel p = plant;
+  for (size_t k = 0; k < links.size(); ++k) scale_link(p.links.at(static_cast<size_t>(links[k])), std::exp(theta[static_cast<Eigen::Index>(k)]));
+  return p;
+}
+
+Values model_values(const PlantModel& plant, const FrfData& skeleton) {
+  // The diagnosis' synthesis (diagnosis_internal.h ModelGrid): the reference
+  // and every later run must use the same one, so that its small error is
+  // part of b.
+  FrfSynthesisOptions o;
+  o.method = FrfMethod::modal;
+  o.modal_basis = ModalBasis::krylov;
+  o.damping.modes = StructuralDampingOptions::Modes::band;
+  const FrfData f = model_frf_like(plant, skeleton, o);
+  Values v;
+  for (const auto& e : f.entries) v.push_back(e.h);
+  return v;
+}
+
+NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound) {
+  NuisanceFit f;
+  f.at_zero = model_values(plant, run.skeleton);
+  f.evaluations = 1;
+  const FrfFitTarget target{run.skeleton.freq_hz, run.h, run.weight, run.offset};
+  const Eigen::Index k_links = static_cast<Eigen::Index>(links.size());
+  if (k_links == 0) {
+    f.chi2 = fit_chi2(target, f.at_zero);
+    f.at_theta = f.at_zero;
+    return f;
+  }
+  // Difference Jacobian at 0: the model is nearly linear over a few percent,
+  // so the first Gauss-Newton step lands close to the optimum.
+  const double step = 1e-3;
+  const int values = target.values();
+  Eigen::MatrixXd jac0(2 * values, k_links);
+  for (Eigen::Index k = 0; k < k_links; ++k) {
+    Eigen::VectorXd th = Eigen::VectorXd::Zero(k_links);
+    th[k] = step;
+    Values v = model_values(with_nuisance(plant, links, th), run.skeleton);
+    ++f.evaluations;
+    Eigen::Index row = 0;
+    for (size_t e = 0; e < v.size(); ++e)
+      for (size_t l = 0; l < v[e].size(); ++l) {
+        v[e][l] = (v[e][l] - f.at_zero[e][l]) / step;
+        const std::complex<double> d = run.weight[e][l] * v[e][l];
+        jac0(row++, k) = d.real();
+        jac0(row++, k) = d.imag();
+      }
+    f.jacobian.push_back(std::move(v));
+  }
+  std::vector<std::pair<Eigen::VectorXd, Values>> memo;
+  auto model = [&](const Eigen::VectorXd& th) -> Values {
+    if (th.isZero(0.0)) return f.at_zero;
+    for (const auto& [t, v] : memo)
+      if (t == th) return v;
+    memo.emplace_back(th, model_values(with_nuisance(plant, links, th), run.skeleton));
+    ++f.evaluations;
+    return memo.back().second;
+  };
+  ParameterFitOptions o;
+  o.start = Eigen::VectorXd::Zero(k_links);
+  o.lower = Eigen::VectorXd::Constant(k_links, -bound);
+  o.upper = Eigen::VectorXd::Constant(k_links, bound);
+  o.broyden = true;
+  o.jacobian0 = jac0;
+  o.max_iterations = 20;
+  o.rel_tolerance = 1e-9;
+  o.step_tolerance = 1e-7;
+  const ParameterFitResult r = fit_parameters(model, target, o);
+  f.theta = r.p;
+  f.cov = r.covariance;
+  f.chi2 = r.chi2;
+  f.at_theta = model(r.p);
+  return f;
+}
+
+}  // namespace operating_detail
+
+using namespace operating_detail;
+
+namespace {
+
+std::string run_name(const FrfData& run, size_t i) {
+  const auto id = run.meta("run_id");
+  return "reference run " + std::to_string(i + 1) + (id ? " (" + *id + ")" : "");
+}
+
+// Grid, entries and sigma columns of every run against the first.
+void check_runs(const std::vector<FrfData>& runs) {
+  if (runs.size() < 2)
+    throw InputError("operating reference: " + std::to_string(runs.size()) + " reference run(s), at least 2 needed");
+  const FrfData& first = runs.front();
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const FrfData& run = runs[r];
+    const std::string which = run_name(run, r);
+    if (run.freq_hz.empty()) throw InputError(which + ": no lines");
+    if (run.freq_hz.size() != first.freq_hz.size())
+      throw InputError(which + ": " + std::to_string(run.freq_hz.size()) + " lines, run 1 has " + std::to_string(first.freq_hz.size()));
+    for (size_t l = 0; l < first.freq_hz.size(); ++l)
+      if (std::fabs(run.freq_hz[l] - first.freq_hz[l]) > 1e-9 * std::max(1.0, first.freq_hz[l]))
+        throw InputError(which + ": line " + std::to_string(l + 1) + " at " + std::to_string(run.freq_hz[l]) + " Hz, run 1 at " +
+                         std::to_string(first.freq_hz[l]) + " Hz");
+    if (run.entries.size() != first.entries.size())
+      throw InputError(which + ": " + std::to_string(run.entries.size()) + " entries, run 1 has " + std::to_string(first.entries.size()));
+    for (const auto& e0 : first.entries) {
+      const FrfEntry* e = run.find(e0.output, e0.input);
+      if (!e) throw InputError(which + ": has no entry " + e0.output + "/" + e0.input);
+      if (e->sigma.size() != run.freq_hz.size())
+        throw InputError(which + ": entry " + e0.output + "/" + e0.input + " has no sigma column (the noise level is needed)");
+      for (double s : e->sigma)
+        if (!(s > 0.0) || !std::isfinite(s))
+          throw InputError(which + ": entry " + e0.output + "/" + e0.input + ": sigma must be finite and > 0");
+    }
+  }
+}
+
+// Normal spread of theta: a common drift of all links (sd_c) plus each
+// link's own (sd_l), from the centred estimates, pooled; see the header.
+void learn_spread(const std::vector<Eigen::VectorXd>& theta, const Eigen::VectorXd& mean, OperatingReference& ref) {
+  const double n = static_cast<double>(theta.size());
+  const Eigen::Index k = mean.size();
+  double s_common = 0.0, s_link = 0.0;
+  for (const auto& t : theta) {
+    const Eigen::VectorXd d = t - mean;
+    const double c = d.mean();
+    s_common += c * c;
+    s_link += (d.array() - c).square().sum();
+  }
+  s_common /= (n - 1.0);
+  if (k >= 2) {
+    s_link /= (n - 1.0) * static_cast<double>(k - 1);
+    // The common mean of K links carries 1/K of each link's own variance.
+    ref.link_sd_estimate = std::sqrt(s_link);
+    ref.common_sd_estimate = std::sqrt(std::max(0.0, s_common - s_link / static_cast<double>(k)));
+  } else {
+    ref.link_sd_estimate = 0.0;  // one link: its own and the common drift are one
+    ref.common_sd_estimate = std::sqrt(s_common);
+  }
+  ref.common_sd = std::max(ref.common_sd_estimate, ref.options.common_sd_floor);
+  ref.link_sd = std::max(ref.link_sd_estimate, ref.options.link_sd_floor);
+}
+
+}  // namespace
+
+OperatingReference learn_operating_reference(const PlantModel& plant, const std::vector<FrfData>& runs,
+                                             const OperatingReferenceOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InputError("operating reference options: " + why);
+  check_runs(runs);
+  OperatingReference ref;
+  ref.options = options;
+  const std::vector<int> links = nuisance_links(plant);
+  for (int i : links) ref.nuisance_links.push_back(plant.links[static_cast<size_t>(i)].name);
+  const FrfData& first = runs.front();
+  ref.freq_hz = first.freq_hz;
+  const size_t n_runs = runs.size(), n_ent = first.entries.size(), lines = first.freq_hz.size();
+  const double n = static_cast<double>(n_runs);
+
+  // Every run's data in the first run's entry order.
+  std::vector<RunData> data(n_runs);
+  for (size_t r = 0; r < n_runs; ++r) {
+    RunData& d = data[r];
+    d.skeleton.speed_rpm = runs[r].speed_rpm.value_or(plant.speed_rpm);
+    d.skeleton.freq_hz = first.freq_hz;
+    for (const auto& e0 : first.entries) {
+      const FrfEntry* e = runs[r].find(e0.output, e0.input);
+      d.skeleton.entries.push_back({e0.output, e0.input, {}, {}, {}});
+      d.h.push_back(e->h);
+      std::vector<double> w(lines);
+      for (size_t l = 0; l < lines; ++l) w[l] = 1.0 / e->sigma[l];
+      d.weight.push_back(std::move(w));
+    }
+  }
+
+  // b from the model at each run's speed and theta (0 first), then the
+  // per-run theta with that b, alternated.
+  std::vector<Values> model_at(n_runs);
+  for (size_t r = 0; r < n_runs; ++r) {
+    try {
+      model_at[r] = model_values(plant, data[r].skeleton);
+    } catch (const InputError& e) {
+      throw InputError(run_name(runs[r], r) + ": " + e.what());
+    }
+  }
+  Values bias;
+  auto update_bias = [&]() {
+    bias.assign(n_ent, std::vector<std::complex<double>>(lines, {0.0, 0.0}));
+    for (size_t r = 0; r < n_runs; ++r)
+      for (size_t e = 0; e < n_ent; ++e)
+        for (size_t l = 0; l < lines; ++l) bias[e][l] += (data[r].h[e][l] - model_at[r][e][l]) / n;
+  };
+  update_bias();
+  std::vector<NuisanceFit> fits(n_runs);
+  for (int pass = 0; pass < options.passes; ++pass) {
+    for (size_t r = 0; r < n_runs; ++r) {
+      data[r].offset = bias;
+      fits[r] = fit_nuisance(plant, links, data[r], options.log_factor_bound);
+      model_at[r] = fits[r].at_theta;
+    }
+    update_bias();
+  }
+
+  // The nuisance's centre and spread.
+  const Eigen::Index k = static_cast<Eigen::Index>(links.size());
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(k);
+  Eigen::MatrixXd mean_cov = Eigen::MatrixXd::Zero(k, k);
+  std::vector<Eigen::VectorXd> theta;
+  for (const auto& f : fits) {
+    theta.push_back(f.theta);
+    mean += f.theta / n;
+    if (k > 0) mean_cov += f.cov / (n * n);
+  }
+  if (k > 0) learn_spread(theta, mean, ref);
+  ref.log_factor_mean.assign(mean.data(), mean.data() + k);
+  for (Eigen::Index i = 0; i < k; ++i)
+    for (Eigen::Index j = 0; j < k; ++j) ref.log_factor_mean_cov.push_back(mean_cov(i, j));
+
+  // Runs, and kappa per entry from the residual scatter: sum_i |r_i|^2 with
+  // r_i = H_i - M_i - b is (n - 1) / n of the noise variance summed, a chi2
+  // with 2 (n - 1) L dof per entry if sigma is right (the few nuisance
+  // parameters per run are negligible against L).
+  for (size_t r = 0; r < n_runs; ++r) {
+    OperatingRun run;
+    run.run_id = runs[r].meta("run_id").value_or("run " + std::to_string(r + 1));
+    run.speed_rpm = data[r].skeleton.speed_rpm.value_or(plant.speed_rpm);
+    run.log_factor.assign(fits[r].theta.data(), fits[r].theta.data() + k);
+    run.values = static_cast<int>(n_ent * lines);
+    for (size_t e = 0; e < n_ent; ++e) {
+      const FrfEntry* fe = runs[r].find(first.entries[e].output, first.entries[e].input);
+      for (size_t l = 0; l < lines; ++l) {
+        run.chi2 += std::norm(data[r].h[e][l] - model_at[r][e][l] - bias[e][l]) / (fe->sigma[l] * fe->sigma[l]);
+      }
+    }
+    ref.runs.push_back(run);
+  }
+  for (size_t e = 0; e < n_ent; ++e) {
+    OperatingEntry oe;
+    oe.output = first.entries[e].output;
+    oe.input = first.entries[e].input;
+    oe.bias = bias[e];
+    oe.sigma2.assign(lines, 0.0);
+    for (size_t r = 0; r < n_runs; ++r) {
+      const FrfEntry* fe = runs[r].find(oe.output, oe.input);
+      for (size_t l = 0; l < lines; ++l) oe.sigma2[l] += fe->sigma[l] * fe->sigma[l] / n;
+    }
+    double s = 0.0;
+    for (size_t r = 0; r < n_runs; ++r)
+      for (size_t l = 0; l < lines; ++l) s += 2.0 * std::norm(data[r].h[e][l] - model_at[r][e][l] - bias[e][l]) / oe.sigma2[l];
+    const double dof = 2.0 * (n - 1.0) * static_cast<double>(lines);
+    oe.scatter_ratio = s / dof;
+    oe.scatter_p = chi2_sf(s, dof);
+    if (oe.scatter_p < options.alpha_scatter) oe.kappa = oe.scatter_ratio;
+    ref.entries.push_back(std::move(oe));
+  }
+  return ref;
+}
+
+}  // namespace ambdiag

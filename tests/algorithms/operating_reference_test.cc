@@ -1,0 +1,314 @@
+// Detection under real operating conditions (operating_reference.h): runs at
+// other speeds and with a normal seal drift are not faults; a worn balance
+// piston is, at any speed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <ctime>
+#include <random>
+
+#include "ambdiag/algorithms/diagnosis.h"
+#include "ambdiag/algorithms/operating_reference.h"
+#include "ambdiag/core/error.h"
+#include "diagnosis_support.h"
+#include "operating_support.h"
+#include "test_support.h"
+
+namespace ambdiag {
+namespace {
+
+using testing::data_file;
+using testing::Operation;
+using testing::reference_plant;
+using testing::SealDrift;
+using testing::shared_like;
+
+const FaultHypothesis& balance_piston_hypothesis(const std::vector<FaultHypothesis>& hs) {
+  for (const auto& h : hs)
+    if (h.kind == FaultKind::balance_piston_wear) return h;
+  throw std::logic_error("no balance piston");
+}
+
+std::vector<FrfData> shared_references(int n) {
+  std::vector<FrfData> v;
+  for (int i = 1; i <= n; ++i) v.push_back(read_frf_csv(data_file("reference_pump/frf_ref_" + std::to_string(i) + ".csv").string()));
+  return v;
+}
+
+// Three healthy runs under normal operation (speed +-3 %, seal drift).
+std::vector<FrfData> simulated_references(const PlantModel& plant, const FrfData& like, const Operation& op, std::mt19937_64& rng) {
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::healthy_run(plant, like, op, rng));
+  return refs;
+}
+
+TEST(OperatingReference, LearnsSpeedsDriftAndANoiseLevelFromThreeRuns) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16001);
+  const auto refs = simulated_references(plant, like, Operation{}, rng);
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  ASSERT_EQ(ref.runs.size(), 3u);
+  ASSERT_EQ(ref.nuisance_links.size(), 2u);  // impeller_seal, balance_piston
+  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(ref.runs[i].speed_rpm, *refs[i].speed_rpm);
+  EXPECT_GE(ref.common_sd, 0.03);  // the floors
+  EXPECT_GE(ref.link_sd, 0.01);
+  for (const auto& e : ref.entries) {
+    EXPECT_NEAR(e.scatter_ratio, 1.0, 0.1) << e.output << "/" << e.input;  // the residuals scatter as sigma says
+    EXPECT_EQ(e.kappa, 1.0) << e.output << "/" << e.input;
+  }
+  for (const auto& r : ref.runs) EXPECT_NEAR(r.chi2 / r.values, 2.0 / 3.0, 0.05);  // (n - 1) / n of the noise
+}
+
+// The false-alarm rate is alpha: healthy runs at speeds +-3 % and with seal
+// drift at the floors' size (common 3 %, own 1 %: the spread the test
+// assumes), each against references of three such runs (10 machines x 15
+// runs). Residual and drift tests each at alpha_each = 1 - sqrt(1 - alpha).
+TEST(OperatingReference, FalseAlarmRateMatchesAlphaUnderSpeedAndSealDrift) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16002);
+  Operation op;
+  op.common_sd = 0.03;
+  op.own_sd = 0.01;
+  DiagnosisOptions opt;
+  opt.alpha = 0.05;
+  opt.detect_only = true;
+  int alarms = 0, residual = 0, drift = 0, runs = 0;
+  double cpu_s = 0.0;
+  for (int m = 0; m < 10; ++m) {
+    const OperatingReference ref = learn_operating_reference(plant, simulated_references(plant, like, op, rng));
+    for (int k = 0; k < 15; ++k) {
+      const FrfData run = testing::healthy_run(plant, like, op, rng);
+      const std::clock_t t0 = std::clock();
+      const DiagnosisResult r = diagnose(plant, ref, run, opt);
+      cpu_s += static_cast<double>(std::clock() - t0) / CLOCKS_PER_SEC;
+      alarms += r.detected;
+      residual += r.operating.residual_detected;
+      drift += r.operating.drift_detected;
+      EXPECT_EQ(r.detected, r.p_value < opt.alpha);
+      ++runs;
+    }
+  }
+  RecordProperty("alarms_of_150_at_alpha_0.05", alarms);
+  RecordProperty("residual_alarms", residual);
+  RecordProperty("drift_alarms", drift);
+  RecordProperty("detection_cpu_ms_per_run", static_cast<int>(1000.0 * cpu_s / runs));
+  std::printf("alarms %d of %d (residual %d, drift %d), detection %.1f ms CPU per run\n", alarms, runs, residual, drift,
+              1000.0 * cpu_s / runs);
+  // Binomial(150, 0.05): mean 7.5, sd 2.7; residual test alone at 0.0253: 3.8 +- 1.9.
+  EXPECT_GE(alarms, 1);
+  EXPECT_LE(alarms, 16);
+  EXPECT_LE(residual, 10);
+  EXPECT_LT(cpu_s / runs, 0.3);
+}
+
+// The bug: a common seal drift of 3 % at the references' speed is
+// diagnosed as a fault by the same-speed path; the operating path does not
+// fire.
+TEST(OperatingReference, ThreePercentSealDriftIsNotDetected) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16003);
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::simulate_run(plant, like, 2950.0, rng));
+  const FrfData run = testing::simulate_run(testing::drifted(plant, SealDrift{0.03, {}}), like, 2950.0, rng);
+  DiagnosisOptions opt;
+  opt.alpha = 1e-4;
+  const DiagnosisResult old = diagnose(plant, reference_statistics(refs), run, opt);
+  EXPECT_TRUE(old.detected) << "the old path should fire on a 3 % seal drift";
+  const DiagnosisResult r = diagnose(plant, learn_operating_reference(plant, refs), run, opt);
+  EXPECT_FALSE(r.detected) << "residual p " << r.operating.residual_p_value << ", drift " << r.operating.drift_statistic;
+  EXPECT_TRUE(r.faults.empty());
+  ASSERT_EQ(r.operating.nuisance.size(), 2u);
+  for (const auto& nu : r.operating.nuisance) EXPECT_NEAR(nu.log_factor, std::log(1.03), 0.005) << nu.link;
+}
+
+// A run 3 % faster than its references: the same-speed path refuses it; the
+// operating path evaluates the model at the run's speed and finds nothing.
+TEST(OperatingReference, RunThreePercentFasterIsAcceptedAndNotDetected) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16004);
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::simulate_run(plant, like, 2950.0, rng));
+  const FrfData run = testing::simulate_run(plant, like, 2950.0 * 1.03, rng);
+  EXPECT_THROW(diagnose(plant, reference_statistics(refs), run), InputError);
+  DiagnosisOptions opt;
+  opt.alpha = 1e-4;
+  const DiagnosisResult r = diagnose(plant, learn_operating_reference(plant, refs), run, opt);
+  EXPECT_FALSE(r.detected) << "residual p " << r.operating.residual_p_value << ", drift p " << r.operating.drift_p_value;
+  EXPECT_DOUBLE_EQ(r.operating.speed_rpm, 2950.0 * 1.03);
+}
+
+// The fault: balance piston clearance 1.3 x nominal, at 2 % above
+// the references' speeds, with the seals drifted by 1 %: detected, and
+// diagnosed as balance piston wear with 1.3 inside its interval.
+TEST(OperatingReference, BalancePistonWearAtAnotherSpeedWithSealDriftIsDiagnosed) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16005);
+  const auto refs = simulated_references(plant, like, Operation{}, rng);
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  const auto hyps = fault_hypotheses(plant);
+  const PlantModel truth = apply_fault(testing::drifted(plant, SealDrift{0.01, {}}), balance_piston_hypothesis(hyps), 1.3);
+  const FrfData run = testing::simulate_run(truth, like, 2950.0 * 1.02, rng);
+  DiagnosisOptions opt;
+  opt.alpha = kRecommendedAlphaPerRun;
+  const DiagnosisResult r = diagnose(plant, ref, run, opt);
+  ASSERT_TRUE(r.detected);
+  ASSERT_FALSE(r.faults.empty());
+  const FaultEstimate& f = r.faults.front();
+  EXPECT_EQ(f.name, "balance_piston_wear");
+  EXPECT_LE(f.ci_lo, 1.3);
+  EXPECT_GE(f.ci_hi, 1.3);
+  EXPECT_NEAR(f.value, 1.3, 0.05);
+  EXPECT_TRUE(r.explained);
+  std::printf("balance piston: drift D %.1f (threshold %.1f), residual T/thr %.3f, clearance %.4f [%.4f, %.4f], evaluations %d\n",
+              r.operating.drift_statistic, r.operating.drift_threshold, r.statistic / r.threshold, f.value, f.ci_lo, f.ci_hi,
+              r.evaluations);
+  for (size_t i = 0; i < 3 && i < r.faults.size(); ++i)
+    std::printf("  %s %s %.4f chi2 %.1f\n", r.faults[i].name.c_str(), r.faults[i].location.c_str(), r.faults[i].value, r.faults[i].chi2);
+}
+
+// The shared cases (independent generator) through the operating path,
+// against three of the shared reference runs.
+TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
+  const PlantModel plant = reference_plant();
+  const OperatingReference ref = learn_operating_reference(plant, shared_references(3));
+  struct Case {
+    const char* dir;
+    const char* first;
+    double value, tolerance;
+  };
+  for (const Case& c : {Case{"fault_dry_run", "dry_run", 0.0, 0.1}, Case{"fault_balance_piston_wear", "balance_piston_wear", 1.6, 0.1},
+                        Case{"fault_crack", "rotor_crack", 0.7, 0.05}}) {
+    const FrfData meas = read_frf_csv(data_file(std::string(c.dir) + "/frf.csv").string());
+    const DiagnosisResult r = diagnose(plant, ref, meas);
+    ASSERT_TRUE(r.detected) << c.dir;
+    ASSERT_FALSE(r.faults.empty()) << c.dir;
+    EXPECT_EQ(r.faults.front().name, c.first) << c.dir;
+    EXPECT_NEAR(r.faults.front().value, c.value, c.tolerance) << c.dir;
+    EXPECT_TRUE(r.explained) << c.dir;
+    if (std::string(c.first) == "rotor_crack") {
+      ASSERT_EQ(r.faults.front().hypothesis.elements.size(), 1u);
+      EXPECT_LE(std::abs(r.faults.front().hypothesis.elements[0] - 8), 1);
+    }
+  }
+  // The two shared runs left out are healthy.
+  for (int i = 4; i <= 5; ++i) {
+    const DiagnosisResult r =
+        diagnose(plant, ref, read_frf_csv(data_file("reference_pump/frf_ref_" + std::to_string(i) + ".csv").string()));
+    EXPECT_FALSE(r.detected) << "frf_ref_" << i << " p " << r.p_value;
+  }
+}
+
+// A measured run on another grid (half-line offsets, a narrower band): the
+// references' b and its variance are interpolated; outside their range the
+// run is refused.
+TEST(OperatingReference, RunOnAnotherGridIsInterpolatedOrRefused) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16006);
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::simulate_run(plant, like, 2950.0, rng));
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  FrfData other = like;
+  other.freq_hz.clear();
+  for (double f = 1.5; f < 999.0; f += 2.0) other.freq_hz.push_back(f);
+  for (auto& e : other.entries) {
+    const FrfEntry* s = like.find(e.output, e.input);
+    e.h.assign(other.freq_hz.size(), {0.0, 0.0});
+    e.sigma.assign(other.freq_hz.size(), s->sigma.front());
+    e.coh.clear();
+  }
+  const FrfData run = testing::simulate_run(plant, other, 2950.0, rng);
+  DiagnosisOptions opt;
+  opt.alpha = 1e-3;
+  const DiagnosisResult r = diagnose(plant, ref, run, opt);
+  EXPECT_FALSE(r.detected) << "p " << r.p_value << " T/dof " << r.statistic / r.dof;
+  FrfData outside = run;
+  outside.freq_hz.back() = 1200.0;
+  try {
+    diagnose(plant, ref, outside, opt);
+    ADD_FAILURE() << "a line beyond the reference range was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OperatingReference, JsonRoundTripKeepsTheResult) {
+  const PlantModel plant = reference_plant();
+  const OperatingReference ref = learn_operating_reference(plant, shared_references(3));
+  const std::string text = operating_reference_to_json(ref);
+  const OperatingReference back = operating_reference_from_json(text);
+  EXPECT_EQ(operating_reference_to_json(back), text);
+  EXPECT_EQ(back.nuisance_links, ref.nuisance_links);
+  EXPECT_EQ(back.runs.size(), 3u);
+  EXPECT_EQ(back.entries.size(), ref.entries.size());
+  EXPECT_EQ(back.entries[3].bias[100], ref.entries[3].bias[100]);
+  const FrfData meas = read_frf_csv(data_file("reference_pump/frf_ref_4.csv").string());
+  DiagnosisOptions opt;
+  opt.detect_only = true;
+  EXPECT_EQ(diagnose(plant, ref, meas, opt).statistic, diagnose(plant, back, meas, opt).statistic);
+}
+
+TEST(OperatingReference, BadDocumentsAreRefusedNamingTheField) {
+  const PlantModel plant = reference_plant();
+  const std::string good = operating_reference_to_json(learn_operating_reference(plant, shared_references(2)));
+  auto refused_naming = [&](const std::string& text, const std::string& name) {
+    try {
+      operating_reference_from_json(text);
+      ADD_FAILURE() << "accepted a document with a bad " << name;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  };
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string s = good;
+    const auto at = s.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return s.replace(at, from.size(), to);
+  };
+  refused_naming("{not json", "invalid JSON");
+  refused_naming("[]", "must be an object");
+  refused_naming(replaced("\"format\":\"ambdiag.operating_reference/1\"", "\"format\":\"x\""), "format");
+  refused_naming(replaced("\"kappa\":", "\"kappa_\":"), "entries[0].kappa");
+  refused_naming(replaced("\"speed_rpm\":", "\"speed_rpm\":\"fast\",\"x\":"), "runs[0].speed_rpm");
+  refused_naming(replaced("\"common_sd\":", "\"common_sd\":-1,\"y\":"), "common_sd");
+  EXPECT_NO_THROW(operating_reference_from_json(good));
+}
+
+TEST(OperatingReference, RefusesRunsThatCannotBeAReference) {
+  const PlantModel plant = reference_plant();
+  std::vector<FrfData> runs = shared_references(3);
+  auto refused_naming = [&](const std::vector<FrfData>& rs, const std::string& name) {
+    try {
+      learn_operating_reference(plant, rs);
+      ADD_FAILURE() << "accepted: " << name;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  };
+  refused_naming({runs[0]}, "at least 2");
+  auto bad = runs;
+  bad[2].freq_hz[10] += 0.25;
+  refused_naming(bad, "reference run 3");
+  bad = runs;
+  bad[1].entries[4].sigma.clear();
+  refused_naming(bad, "reference run 2");
+  bad = runs;
+  bad[1].entries.pop_back();
+  refused_naming(bad, "reference run 2");
+  PlantModel fewer = plant;
+  fewer.sensors.pop_back();
+  try {
+    learn_operating_reference(fewer, runs);
+    ADD_FAILURE() << "a model without a measured channel was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("reference run 1"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ambdiag
