@@ -295,12 +295,14 @@ int run(const Cli& c) {
     std::string active;
     for (const auto& f : st.faults)
       if (f.active) active += (active.empty() ? "" : ", ") + f.name + "=" + std::to_string(f.value);
+    char loop_note[64] = "loop kept";
+    if (simulator.last_rebuild_s() > 0) std::snprintf(loop_note, sizeof loop_note, "loop rebuilt in %.3f s", simulator.last_rebuild_s());
     std::fprintf(stderr,
-                 "ambdiag-agent: identification run %lld%s simulated in %.2f s (loop built in %.3f s, 0: kept): %.1f rpm, seal "
-                 "drift %+.4f, faults [%s]\n",
+                 "ambdiag-agent: identification run %lld%s simulated in %.2f s (%s): %.1f rpm, seal drift %+.4f, "
+                 "faults in force [%s]\n",
                  i + 1, runs ? (" of " + std::to_string(runs)).c_str() : "",
-                 std::chrono::duration<double>(clock::now() - sim_t0).count(), simulator.last_rebuild_s(), st.speed_rpm,
-                 st.seal_drift, active.c_str());
+                 std::chrono::duration<double>(clock::now() - sim_t0).count(), loop_note, st.speed_rpm, st.seal_drift,
+                 active.c_str());
     all_ok = stream_one(ep, std::move(run_rec), cfg, opt) && all_ok;
     ident.done(seconds());
   }
