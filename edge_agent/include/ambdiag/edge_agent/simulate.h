@@ -19,7 +19,7 @@
 // identification run n, from a generator seeded with (operating seed, n)
 // alone, so run n's pump is the same whatever ran before and in the
 // snapshot simulator too:
-//   speed    = model speed x (1 + u speed_spread_pct / 100), u ~ U(-1, 1):
+//   speed    = model speed x (1 + v speed_spread_pct / 100), v ~ U(-1, 1):
 //              gyroscopics, the links' speed tables and the 1x unbalance
 //              (u Omega^2, u fixed) at that speed;
 //   seals    = every coefficient and speed-table value of every link of
