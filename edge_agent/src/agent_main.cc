@@ -63,8 +63,15 @@ const char* kUsage =
     "  --timeout S          give up after S seconds without progress (default 60)\n"
     "  --runs N             simulate: identification runs, then exit (default: the config's\n"
     "                       schedule.runs; 0 = until stopped)\n"
-    "  --fault NAME[=VALUE] simulate: inject faults (see edge_agent/README.md)\n"
-    "  --seed N             simulate: noise seed (default 1)\n"
+    "  --fault SPEC ...     simulate: inject faults, NAME[=V|=A..B][@runK[..M]]: V from\n"
+    "                       run 1 (or K) on, healthy before; A..B linear to the last run\n"
+    "                       (of --runs N, or M); see docs/simulation.md\n"
+    "  --speed-spread PCT   simulate: each run at the model speed x (1 + U(-PCT, PCT) / 100)\n"
+    "                       (default 0; 0..20)\n"
+    "  --seal-drift PCT     simulate: per run, seal and balance-piston coefficients x (1 + d),\n"
+    "                       d ~ N(0, PCT / 100) common to the links (default 0; 0..20)\n"
+    "  --seal-drift-link PCT  simulate: plus an independent N(0, PCT / 100) per link (default 0)\n"
+    "  --seed N             simulate: noise and variability seed (default 1)\n"
     "exit codes: 0 committed, 1 not committed (timeout, incomplete, stopped), 2 usage, 3 bad input\n";
 
 struct Cli {
@@ -82,7 +89,8 @@ struct Cli {
 Cli parse(int argc, char** argv) {
   static const std::vector<std::string> kOptions = {"--config", "--domain", "--partition", "--pump", "--spool-dir",
                                                     "--spool-limit", "--block-frames", "--timeout", "--model",
-                                                    "--runs", "--seed"};
+                                                    "--runs", "--seed", "--speed-spread", "--seal-drift",
+                                                    "--seal-drift-link"};
   Cli c;
   if (argc < 2) throw UsageError("missing command (replay, simulate or forward)");
   c.command = argv[1];
@@ -114,6 +122,14 @@ long long integer_option(const Cli& c, const std::string& k, long long lo, long 
   const long long x = std::strtoll(v.c_str(), &end, 10);
   if (v.empty() || *end != '\0' || errno != 0 || x < lo || x > hi)
     throw UsageError(k + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got '" + v + "'");
+  return x;
+}
+
+double percent_option(const Cli& c, const std::string& k) {
+  const std::string v = c.opt(k);
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !(x >= 0 && x <= 20)) throw UsageError(k + " must be a percentage in 0..20, got '" + v + "'");
   return x;
 }
 
@@ -230,7 +246,21 @@ int run(const Cli& c) {
   sim.meas_periods = sc.meas_periods;
   sim.monitoring_s = sc.monitoring_s;
   sim.seed = c.has("--seed") ? static_cast<uint64_t>(integer_option(c, "--seed", 0, 1ll << 40)) : sc.seed;
+  sim.speed_spread_pct = c.has("--speed-spread") ? percent_option(c, "--speed-spread") : sc.speed_spread_pct;
+  sim.seal_drift_pct = c.has("--seal-drift") ? percent_option(c, "--seal-drift") : sc.seal_drift_pct;
+  sim.seal_drift_link_pct = c.has("--seal-drift-link") ? percent_option(c, "--seal-drift-link") : sc.seal_drift_link_pct;
   const long long runs = c.has("--runs") ? integer_option(c, "--runs", 0, 1000000) : cfg.runs;
+  sim.runs = runs;
+  for (const auto& f : sim.faults) {
+    agent::FaultSchedule spec;
+    try {
+      spec = agent::parse_fault_schedule(f);
+    } catch (const InputError& e) {
+      throw UsageError(e.what());
+    }
+    if (spec.end_value && !spec.to_run && runs == 0)
+      throw UsageError("--fault " + f + ": a ramp A..B ends at the last run: give --runs N or @runK..M");
+  }
   const PlantModel plant = read_plant_file(cfg.model);
   const agent::SpoolLock lock(cfg.spool_dir);
   agent::PumpSimulator simulator(plant, sim);
@@ -244,7 +274,8 @@ int run(const Cli& c) {
   std::unique_ptr<agent::SnapshotPublisher> snapshots;
   if (cfg.monitoring_interval_s > 0) {
     agent::SimulationOptions mon = sim;
-    mon.seed = sim.seed + 1;  // its own noise
+    mon.seed = sim.seed + 1;         // its own noise,
+    mon.operating_seed = sim.seed;   // the runs' speed, seal drift and faults
     snapshots = std::make_unique<agent::SnapshotPublisher>(ep, cfg.pump_id, std::make_unique<agent::PumpSimulator>(plant, mon),
                                                            cfg.monitoring_interval_s);
   }
@@ -257,9 +288,22 @@ int run(const Cli& c) {
   for (long long i = 0; (runs == 0 || i < runs) && !g_stop; ++i) {
     while (!g_stop && !ident.due(seconds())) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (g_stop) break;
-    std::fprintf(stderr, "ambdiag-agent: simulating identification run %lld%s\n", i + 1,
-                 runs ? (" of " + std::to_string(runs)).c_str() : "");
-    all_ok = stream_one(ep, simulator.identification_run(), cfg, opt) && all_ok;
+    if (snapshots) snapshots->follow_run(i + 1);
+    const auto sim_t0 = clock::now();
+    RunRecording run_rec = simulator.identification_run();
+    const agent::OperatingState& st = simulator.state();
+    std::string active;
+    for (const auto& f : st.faults)
+      if (f.active) active += (active.empty() ? "" : ", ") + f.name + "=" + std::to_string(f.value);
+    char loop_note[64] = "loop kept";
+    if (simulator.last_rebuild_s() > 0) std::snprintf(loop_note, sizeof loop_note, "loop rebuilt in %.3f s", simulator.last_rebuild_s());
+    std::fprintf(stderr,
+                 "ambdiag-agent: identification run %lld%s simulated in %.2f s (%s): %.1f rpm, seal drift %+.4f, "
+                 "faults in force [%s]\n",
+                 i + 1, runs ? (" of " + std::to_string(runs)).c_str() : "",
+                 std::chrono::duration<double>(clock::now() - sim_t0).count(), loop_note, st.speed_rpm, st.seal_drift,
+                 active.c_str());
+    all_ok = stream_one(ep, std::move(run_rec), cfg, opt) && all_ok;
     ident.done(seconds());
   }
   if (snapshots)

@@ -9,6 +9,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/io_util.h"
+#include "ambdiag/edge_agent/simulate.h"
 
 namespace ambdiag::agent {
 namespace {
@@ -59,6 +60,16 @@ void validate(const AgentConfig& c, const std::string& origin) {
   if (s.settle_periods < 0 || s.settle_periods > 1000) fail("simulation.settle_periods", "must be in 0..1000");
   if (s.meas_periods < 1 || s.meas_periods > 1000) fail("simulation.meas_periods", "must be in 1..1000");
   if (!(s.monitoring_s > 0 && s.monitoring_s <= 3600)) fail("simulation.monitoring_s", "must be in (0, 3600]");
+  if (!(s.speed_spread_pct >= 0 && s.speed_spread_pct <= 20)) fail("simulation.speed_spread_pct", "must be in 0..20");
+  if (!(s.seal_drift_pct >= 0 && s.seal_drift_pct <= 20)) fail("simulation.seal_drift_pct", "must be in 0..20");
+  if (!(s.seal_drift_link_pct >= 0 && s.seal_drift_link_pct <= 20)) fail("simulation.seal_drift_link_pct", "must be in 0..20");
+  for (size_t i = 0; i < s.faults.size(); ++i) {
+    try {
+      parse_fault_schedule(s.faults[i]);
+    } catch (const InputError& e) {
+      fail("simulation.faults[" + std::to_string(i) + "]", e.what());
+    }
+  }
   if (c.spool_dir.empty()) fail("spool.dir", "must be a folder");
   if (c.spool_limit_bytes < (1u << 20)) fail("spool.limit_bytes", "must be at least 1 MiB (1048576)");
   if (c.memory_blocks < 1 || c.memory_blocks > 65536) fail("spool.memory_blocks", "must be in 1..65536");
@@ -92,7 +103,8 @@ AgentConfig load_agent_config(const std::string& path) {
     const json& s = doc["simulation"];
     SimulationConfig& m = c.simulation;
     r.only(s, "simulation", {"excitation", "faults", "sample_rate_hz", "period_samples", "f_min_hz", "f_max_hz",
-                             "settle_periods", "meas_periods", "monitoring_s", "seed"});
+                             "settle_periods", "meas_periods", "monitoring_s", "seed", "speed_spread_pct",
+                             "seal_drift_pct", "seal_drift_link_pct"});
     if (s.contains("excitation")) m.excitation = r.str(s["excitation"], "simulation.excitation");
     if (s.contains("faults")) {
       if (!s["faults"].is_array()) r.fail("simulation.faults", "must be a list of fault names");
@@ -112,6 +124,9 @@ AgentConfig load_agent_config(const std::string& path) {
     num("f_min_hz", m.f_min_hz);
     num("f_max_hz", m.f_max_hz);
     num("monitoring_s", m.monitoring_s);
+    num("speed_spread_pct", m.speed_spread_pct);
+    num("seal_drift_pct", m.seal_drift_pct);
+    num("seal_drift_link_pct", m.seal_drift_link_pct);
     if (auto v = whole("period_samples", 64, 1 << 22)) m.period_samples = *v;
     if (auto v = whole("settle_periods", 0, 1000)) m.settle_periods = static_cast<int>(*v);
     if (auto v = whole("meas_periods", 1, 1000)) m.meas_periods = static_cast<int>(*v);

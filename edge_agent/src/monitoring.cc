@@ -54,6 +54,7 @@ void SnapshotPublisher::run() {
     if (ticker.due(seconds())) {
       lock.unlock();
       try {
+        sim_->set_operating_state(run_);
         const Snapshot s = sim_->monitoring_snapshot();
         const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                 std::chrono::system_clock::now().time_since_epoch()).count();

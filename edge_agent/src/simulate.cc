@@ -1,12 +1,14 @@
 #include "ambdiag/edge_agent/simulate.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <complex>
 #include <ctime>
 #include <map>
 #include <numbers>
+#include <limits>
 #include <optional>
 #include <random>
 
@@ -40,24 +42,46 @@ int impeller_node(const PlantModel& p) {
   return p.node_count() / 2;
 }
 
-struct FaultSpec {
-  std::string name;
-  std::optional<double> value;
-};
+// The fault names and their default values where they do not depend on the
+// plant (unbalance: 10 x the residual; plant faults: kPlantFaults).
+const std::vector<std::string> kFaultNames = {"sensor_fault", "actuator_fault", "unbalance", "dry_run",
+                                              "balance_piston_wear", "impeller_seal_wear", "rotor_crack",
+                                              "shaft_nut_loosening"};
 
-FaultSpec parse_fault(const std::string& text) {
-  FaultSpec f;
-  const auto eq = text.find('=');
-  f.name = text.substr(0, eq);
-  if (eq != std::string::npos) {
-    const std::string v = text.substr(eq + 1);
-    char* end = nullptr;
-    const double x = std::strtod(v.c_str(), &end);
-    if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0)
-      throw InputError("--fault " + text + ": the value must be a number >= 0");
-    f.value = x;
+const std::map<std::string, std::pair<FaultKind, double>>& plant_faults() {
+  static const std::map<std::string, std::pair<FaultKind, double>> k = {
+      {"dry_run", {FaultKind::dry_run, 0.0}},
+      {"balance_piston_wear", {FaultKind::balance_piston_wear, 2.0}},
+      {"impeller_seal_wear", {FaultKind::impeller_seal_wear, 2.0}},
+      {"rotor_crack", {FaultKind::rotor_crack, 0.5}},
+      {"shaft_nut_loosening", {FaultKind::shaft_nut_loosening, 0.5}}};
+  return k;
+}
+
+std::string join_names() {
+  std::string out;
+  for (const auto& n : kFaultNames) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+// A 64-bit seed from a few words: std::seed_seq mixes them, so nearby
+// seeds and runs give unrelated streams.
+uint64_t mixed_seed(uint64_t a, uint64_t b, uint32_t tag) {
+  std::seed_seq seq{static_cast<uint32_t>(a), static_cast<uint32_t>(a >> 32), static_cast<uint32_t>(b),
+                    static_cast<uint32_t>(b >> 32), tag};
+  std::array<uint32_t, 2> w{};
+  seq.generate(w.begin(), w.end());
+  return (static_cast<uint64_t>(w[0]) << 32) | w[1];
+}
+
+// N(0, 1) cut at 3 sigma (drawn again beyond), so a coefficient factor
+// 1 + sigma z stays positive for any sigma the options allow (<= 20 %).
+double cut_normal(std::mt19937_64& g) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (;;) {
+    const double z = n(g);
+    if (std::abs(z) <= 3.0) return z;
   }
-  return f;
 }
 
 // The plant-fault hypothesis of that name: seals by kind, a crack in the
@@ -87,13 +111,27 @@ std::pair<double, double> harmonic(const Eigen::RowVectorXd& v, double w, double
 
 }  // namespace
 
+struct PumpSimulator::ScheduledFault {
+  FaultSchedule spec;
+  enum class Target { sensor, actuator, unbalance, plant } target = Target::plant;
+  FaultHypothesis hypothesis;  // plant faults
+  double healthy = 1.0, start = 1.0, end = 1.0;
+  int64_t to_run = 1;
+
+  double value_at(int64_t run) const {
+    if (run < spec.from_run) return healthy;
+    if (!spec.end_value || run >= to_run) return spec.end_value ? end : start;
+    return start + (end - start) * static_cast<double>(run - spec.from_run) / static_cast<double>(to_run - spec.from_run);
+  }
+};
+
 PumpSimulator::~PumpSimulator() = default;
 
 PumpSimulator::PumpSimulator(const std::string& model_path, SimulationOptions opt)
     : PumpSimulator(read_plant_file(model_path), std::move(opt)) {}
 
-PumpSimulator::PumpSimulator(PlantModel plant, SimulationOptions opt) : plant_(std::move(plant)), opt_(std::move(opt)) {
-  if (plant_.sensors.empty() || plant_.actuators.empty())
+PumpSimulator::PumpSimulator(PlantModel plant, SimulationOptions opt) : base_(std::move(plant)), opt_(std::move(opt)) {
+  if (base_.sensors.empty() || base_.actuators.empty())
     throw InputError("the simulator needs sensors and actuators in the plant model");
   if (opt_.excitation != "multisine" && opt_.excitation != "stepsine")
     throw InputError("excitation must be multisine or stepsine, got '" + opt_.excitation + "'");
@@ -101,47 +139,207 @@ PumpSimulator::PumpSimulator(PlantModel plant, SimulationOptions opt) : plant_(s
       !(opt_.f_min_hz > 0) || !(opt_.f_max_hz > opt_.f_min_hz) || opt_.f_max_hz >= opt_.sample_rate_hz / 2 ||
       opt_.stepsine_steps < 1 || !(opt_.monitoring_s > 0))
     throw InputError("simulation options: need sample rate > 0, 0 < f_min < f_max < Nyquist, periods >= 1");
+  for (const double pct : {opt_.speed_spread_pct, opt_.seal_drift_pct, opt_.seal_drift_link_pct})
+    if (!(pct >= 0 && pct <= 20))
+      throw InputError("simulation options: speed spread and seal drift must be in 0..20 %");
+  if (opt_.runs < 0) throw InputError("simulation options: runs must be >= 0");
   AmbLoopOptions& lo = opt_.loop;
   lo.decimation = static_cast<int>(std::ceil(8000.0 / opt_.sample_rate_hz - 1e-9));
   lo.decimation = std::max(lo.decimation, 1);
   lo.controller_rate_hz = opt_.sample_rate_hz * lo.decimation;
   lo.seed = opt_.seed;
-  lo.unbalance_node = impeller_node(plant_);
-  lo.unbalance_kg_m = residual_unbalance_kg_m(plant_) * opt_.unbalance_grade_mm_per_s / 2.5;
+  lo.unbalance_node = impeller_node(base_);
+  // u is a property of the rotor: fixed at the model speed's G 2.5 value,
+  // its force u Omega^2 follows each run's speed.
+  lo.unbalance_kg_m = residual_unbalance_kg_m(base_) * opt_.unbalance_grade_mm_per_s / 2.5;
+  for (size_t i = 0; i < base_.links.size(); ++i)
+    if (base_.links[i].kind == "seal" || base_.links[i].kind == "balance_piston") seal_links_.push_back(static_cast<int>(i));
 
-  const std::vector<FaultHypothesis> hyps = fault_hypotheses(plant_);
-  const int crack_element = std::max(0, impeller_node(plant_) - 1);
-  static const std::map<std::string, std::pair<FaultKind, double>> kPlantFaults = {
-      {"dry_run", {FaultKind::dry_run, 0.0}},
-      {"balance_piston_wear", {FaultKind::balance_piston_wear, 2.0}},
-      {"impeller_seal_wear", {FaultKind::impeller_seal_wear, 2.0}},
-      {"rotor_crack", {FaultKind::rotor_crack, 0.5}},
-      {"shaft_nut_loosening", {FaultKind::shaft_nut_loosening, 0.5}}};
+  const std::vector<FaultHypothesis> hyps = fault_hypotheses(base_);
+  const int crack_element = std::max(0, impeller_node(base_) - 1);
   for (const auto& text : opt_.faults) {
-    const FaultSpec f = parse_fault(text);
-    if (f.name == "sensor_fault") {
-      lo.sensor_gain.assign(plant_.sensors.size(), 1.0);
-      lo.sensor_gain[0] = f.value.value_or(0.8);
-    } else if (f.name == "actuator_fault") {
-      lo.actuator_gain.assign(plant_.actuators.size(), 1.0);
-      lo.actuator_gain[0] = f.value.value_or(0.7);
-    } else if (f.name == "unbalance") {
-      lo.unbalance_kg_m = f.value.value_or(10.0 * residual_unbalance_kg_m(plant_));
-    } else if (auto it = kPlantFaults.find(f.name); it != kPlantFaults.end()) {
-      const FaultHypothesis* h = plant_hypothesis(hyps, it->second.first, crack_element);
-      if (!h) throw InputError("--fault " + f.name + ": the plant model has nothing this fault acts on");
-      const double v = f.value.value_or(it->second.second);
-      if (v < h->lower || v > h->upper)
-        throw InputError("--fault " + text + ": " + h->parameter + " must be in [" + std::to_string(h->lower) + ", " +
-                         std::to_string(h->upper) + "]");
-      plant_ = apply_fault(plant_, *h, v);
+    ScheduledFault f;
+    f.spec = parse_fault_schedule(text);
+    double lower = 0, upper = std::numeric_limits<double>::infinity(), fallback = 0;
+    std::string parameter = "value";
+    if (f.spec.name == "sensor_fault" || f.spec.name == "actuator_fault") {
+      f.target = f.spec.name == "sensor_fault" ? ScheduledFault::Target::sensor : ScheduledFault::Target::actuator;
+      fallback = f.spec.name == "sensor_fault" ? 0.8 : 0.7;
+      parameter = "gain";
+    } else if (f.spec.name == "unbalance") {
+      f.target = ScheduledFault::Target::unbalance;
+      f.healthy = lo.unbalance_kg_m;
+      fallback = 10.0 * residual_unbalance_kg_m(base_);
+      parameter = "u (kg m)";
     } else {
-      throw InputError("--fault " + f.name +
-                       ": unknown fault (sensor_fault, actuator_fault, unbalance, dry_run, balance_piston_wear, "
-                       "impeller_seal_wear, rotor_crack, shaft_nut_loosening)");
+      const auto& [kind, dflt] = plant_faults().at(f.spec.name);  // the name is known: parse_fault_schedule
+      const FaultHypothesis* h = plant_hypothesis(hyps, kind, crack_element);
+      if (!h) throw InputError("--fault " + f.spec.name + ": the plant model has nothing this fault acts on");
+      f.hypothesis = *h;
+      f.healthy = h->nominal;
+      fallback = dflt;
+      lower = h->lower, upper = h->upper, parameter = h->parameter;
+    }
+    f.start = f.spec.value.value_or(fallback);
+    f.end = f.spec.end_value.value_or(f.start);
+    for (const double v : {f.start, f.end})
+      if (v < lower || v > upper)
+        throw InputError("--fault " + text + ": " + parameter + " must be in [" + std::to_string(lower) + ", " +
+                         std::to_string(upper) + "]");
+    if (f.spec.end_value) {
+      f.to_run = f.spec.to_run.value_or(opt_.runs);
+      if (f.to_run == 0)
+        throw InputError("--fault " + text + ": a ramp A..B ends at the last run: give --runs N or @runK..M");
+      if (f.to_run < f.spec.from_run)
+        throw InputError("--fault " + text + ": the ramp starts at run " + std::to_string(f.spec.from_run) +
+                         ", after the last run " + std::to_string(f.to_run));
+    }
+    faults_.push_back(std::move(f));
+  }
+  build_loop(operating_state(1), opt_.seed);
+}
+
+FaultSchedule parse_fault_schedule(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    throw InputError("--fault '" + text + "': " + why + " (syntax NAME[=V|=A..B][@runK[..M]])");
+  };
+  auto number = [&](const std::string& v) {
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0) bad("'" + v + "' is not a number >= 0");
+    return x;
+  };
+  auto run_number = [&](const std::string& v) {
+    if (v.empty() || v.size() > 9 || v.find_first_not_of("0123456789") != std::string::npos || std::stoll(v) < 1)
+      bad("'" + v + "' is not a run number >= 1");
+    return static_cast<int64_t>(std::stoll(v));
+  };
+  FaultSchedule f;
+  f.text = text;
+  const auto at = text.find('@');
+  const std::string head = text.substr(0, at);
+  const auto eq = head.find('=');
+  f.name = head.substr(0, eq);
+  if (std::find(kFaultNames.begin(), kFaultNames.end(), f.name) == kFaultNames.end())
+    throw InputError("--fault " + f.name + ": unknown fault (" + join_names() + ")");
+  if (eq != std::string::npos) {
+    const std::string v = head.substr(eq + 1);
+    if (const auto dots = v.find(".."); dots == std::string::npos) {
+      f.value = number(v);
+    } else {
+      f.value = number(v.substr(0, dots));
+      f.end_value = number(v.substr(dots + 2));
     }
   }
-  loop_ = std::make_unique<AmbLoop>(plant_, lo);
+  if (at != std::string::npos) {
+    const std::string tail = text.substr(at + 1);
+    if (!tail.starts_with("run")) bad("the onset is written @runK");
+    const std::string r = tail.substr(3);
+    const auto dots = r.find("..");
+    f.from_run = run_number(r.substr(0, dots));
+    if (dots != std::string::npos) {
+      if (!f.end_value) bad("@runK..M ends a ramp A..B; a constant value takes @runK");
+      f.to_run = run_number(r.substr(dots + 2));
+      if (*f.to_run < f.from_run) bad("the ramp ends before it starts");
+    }
+  }
+  return f;
+}
+
+const std::vector<std::string>& simulated_fault_names() { return kFaultNames; }
+
+bool OperatingState::same_pump(const OperatingState& o) const {
+  if (speed_factor != o.speed_factor || seal_factor != o.seal_factor || faults.size() != o.faults.size()) return false;
+  for (size_t i = 0; i < faults.size(); ++i)
+    if (faults[i].value != o.faults[i].value) return false;
+  return true;
+}
+
+nlohmann::json OperatingState::to_json() const {
+  nlohmann::json seals = nlohmann::json::object(), fs = nlohmann::json::array();
+  for (const auto& [name, factor] : seal_factor) seals[name] = factor;
+  for (const auto& f : faults) fs.push_back({{"spec", f.spec}, {"name", f.name}, {"value", f.value}, {"active", f.active}});
+  return {{"run", run}, {"speed_factor", speed_factor}, {"speed_rpm", speed_rpm}, {"seal_drift", seal_drift},
+          {"seal_factors", seals}, {"faults", fs}};
+}
+
+OperatingState PumpSimulator::operating_state(int64_t run) const {
+  OperatingState st;
+  st.run = run;
+  // Every draw is made whatever the options, in a fixed order, so turning
+  // one option on leaves the others' draws as they were.
+  std::mt19937_64 g(mixed_seed(opt_.operating_seed.value_or(opt_.seed), static_cast<uint64_t>(run), 0x6f7065u));
+  const double u = std::uniform_real_distribution<double>(-1.0, 1.0)(g);
+  const double z = cut_normal(g);
+  st.speed_factor = 1.0 + opt_.speed_spread_pct / 100.0 * u;
+  st.speed_rpm = base_.speed_rpm * st.speed_factor;
+  st.seal_drift = opt_.seal_drift_pct / 100.0 * z;
+  for (const int i : seal_links_) {
+    const double d_link = opt_.seal_drift_link_pct / 100.0 * cut_normal(g);
+    st.seal_factor.emplace_back(base_.links[static_cast<size_t>(i)].name, (1.0 + st.seal_drift) * (1.0 + d_link));
+  }
+  for (const auto& f : faults_) {
+    const double v = f.value_at(run);
+    st.faults.push_back({f.spec.text, f.spec.name, v, v != f.healthy});
+  }
+  return st;
+}
+
+// Changes are made only where a factor differs from 1 or a value from the
+// healthy one, so the healthy operating point gives exactly the model.
+PlantModel PumpSimulator::plant_of(const OperatingState& st) const {
+  PlantModel p = base_;
+  p.speed_rpm = st.speed_rpm;
+  for (size_t k = 0; k < seal_links_.size(); ++k)
+    if (st.seal_factor[k].second != 1.0) scale_link(p.links[static_cast<size_t>(seal_links_[k])], st.seal_factor[k].second);
+  for (size_t k = 0; k < faults_.size(); ++k)
+    if (faults_[k].target == ScheduledFault::Target::plant && st.faults[k].active)
+      p = apply_fault(p, faults_[k].hypothesis, st.faults[k].value);
+  return p;
+}
+
+AmbLoopOptions PumpSimulator::loop_options_of(const OperatingState& st) const {
+  AmbLoopOptions lo = opt_.loop;
+  for (size_t k = 0; k < faults_.size(); ++k) {
+    if (!st.faults[k].active) continue;
+    const double v = st.faults[k].value;
+    switch (faults_[k].target) {
+      case ScheduledFault::Target::sensor:
+        lo.sensor_gain.assign(base_.sensors.size(), 1.0);
+        lo.sensor_gain[0] = v;
+        break;
+      case ScheduledFault::Target::actuator:
+        lo.actuator_gain.assign(base_.actuators.size(), 1.0);
+        lo.actuator_gain[0] = v;
+        break;
+      case ScheduledFault::Target::unbalance: lo.unbalance_kg_m = v; break;
+      case ScheduledFault::Target::plant: break;
+    }
+  }
+  return lo;
+}
+
+void PumpSimulator::build_loop(const OperatingState& st, uint64_t noise_seed) {
+  const auto t0 = std::chrono::steady_clock::now();
+  AmbLoopOptions lo = loop_options_of(st);
+  lo.seed = noise_seed;
+  PlantModel p = plant_of(st);
+  loop_ = std::make_unique<AmbLoop>(p, lo);
+  plant_ = std::move(p);
+  state_ = st;
+  last_rebuild_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void PumpSimulator::set_operating_state(int64_t run) {
+  OperatingState st = operating_state(run);
+  if (st.same_pump(state_)) {
+    state_ = std::move(st);  // same pump: keep the loop, its state and its noise
+    last_rebuild_s_ = 0.0;
+    return;
+  }
+  // Noise of its own per rebuilt run (a rebuilt loop seeded like the first
+  // would repeat the first run's noise).
+  build_loop(st, mixed_seed(opt_.seed, static_cast<uint64_t>(run), 0x6e6f69u));
 }
 
 RunRecording PumpSimulator::new_run(const std::string& kind) {
@@ -178,7 +376,9 @@ void PumpSimulator::append(RunRecording& run, const Eigen::MatrixXd& r, const Ei
 }
 
 RunRecording PumpSimulator::identification_run() {
+  set_operating_state(runs_ + 1);
   RunRecording run = opt_.excitation == "multisine" ? multisine_run() : stepsine_run();
+  run.extra["simulation"] = state_.to_json();
   run.validate();
   return run;
 }

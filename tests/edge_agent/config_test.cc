@@ -41,7 +41,8 @@ TEST(AgentConfig, ReadsScheduleAndSimulation) {
       R"({"schedule": {"identification_interval_s": 30, "monitoring_interval_s": 0, "runs": 3},
           "simulation": {"excitation": "stepsine", "faults": ["dry_run", "sensor_fault=0.5"],
                          "sample_rate_hz": 8192, "period_samples": 4096, "f_min_hz": 5, "f_max_hz": 1000,
-                         "settle_periods": 1, "meas_periods": 8, "monitoring_s": 2, "seed": 7}})");
+                         "settle_periods": 1, "meas_periods": 8, "monitoring_s": 2, "seed": 7,
+                         "speed_spread_pct": 2.5, "seal_drift_pct": 5, "seal_drift_link_pct": 1}})");
   const AgentConfig c = load_agent_config(path.string());
   EXPECT_EQ(c.runs, 3);
   EXPECT_EQ(c.monitoring_interval_s, 0.0);  // no snapshots
@@ -54,6 +55,9 @@ TEST(AgentConfig, ReadsScheduleAndSimulation) {
   EXPECT_EQ(c.simulation.meas_periods, 8);
   EXPECT_EQ(c.simulation.monitoring_s, 2);
   EXPECT_EQ(c.simulation.seed, 7u);
+  EXPECT_EQ(c.simulation.speed_spread_pct, 2.5);
+  EXPECT_EQ(c.simulation.seal_drift_pct, 5);
+  EXPECT_EQ(c.simulation.seal_drift_link_pct, 1);
 }
 
 TEST(AgentConfig, SimulationErrorsNameTheKey) {
@@ -64,6 +68,15 @@ TEST(AgentConfig, SimulationErrorsNameTheKey) {
   EXPECT_NE(error_of(R"({"simulation": {"f_max_hz": 2000}})").find("simulation.f_max_hz"), std::string::npos);
   EXPECT_NE(error_of(R"({"simulation": {"meas_periods": 0}})").find("simulation.meas_periods"), std::string::npos);
   EXPECT_NE(error_of(R"({"simulation": {"sede": 1}})").find("simulation.sede: unknown key"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"speed_spread_pct": 25}})").find("simulation.speed_spread_pct"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"seal_drift_pct": -1}})").find("simulation.seal_drift_pct"), std::string::npos);
+  EXPECT_NE(error_of(R"({"simulation": {"seal_drift_link_pct": 21}})").find("simulation.seal_drift_link_pct"),
+            std::string::npos);
+  // A developing fault's syntax is checked when the file is read.
+  const std::string bad = error_of(R"({"simulation": {"faults": ["dry_run", "dry_run=0.5@5"]}})");
+  EXPECT_NE(bad.find("simulation.faults[1]"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("dry_run=0.5@5"), std::string::npos) << bad;
+  EXPECT_EQ(error_of(R"({"simulation": {"faults": ["balance_piston_wear=1..1.6@run5..20"]}})"), "");
 }
 
 TEST(AgentConfig, ErrorsNameTheKey) {

@@ -7,6 +7,7 @@
 #include <httplib.h>
 
 #include <cmath>
+#include <set>
 
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/rest_server.h"
@@ -77,6 +78,60 @@ TEST_F(StreamTest, SimulatedRunsArriveCompleteAndSnapshotsArePublished) {
   EXPECT_NE(agent.log().find("monitoring snapshots published"), std::string::npos) << agent.log();
   server->signal(SIGTERM);
   EXPECT_EQ(server->wait(15s), 0) << server->log();
+}
+
+// Operating variability and a fault from run 2: the server stores each
+// run's truth ("simulation" in run.json) as sent, and it agrees with the
+// run's own speed.
+TEST_F(StreamTest, SimulatedRunsCarryTheirTruthIntoTheServer) {
+  setenv("CYCLONEDDS_URI", env["CYCLONEDDS_URI"].c_str(), 1);
+  auto server = start_server();
+  const int port = rest_port(*server);
+  ASSERT_GT(port, 0) << server->log();
+  const fs::path cfg = write_scratch("agent.json", R"({
+      "schedule": {"identification_interval_s": 0.1, "monitoring_interval_s": 0, "runs": 2},
+      "simulation": {"period_samples": 1024, "f_min_hz": 2, "f_max_hz": 600, "settle_periods": 1,
+                     "meas_periods": 1}})");
+  const std::vector<std::string> argv = {AMBDIAG_AGENT, "simulate", "--model", data_file("reference_pump/plant.json").string(),
+                                         "--pump", "SIM-8", "--speed-spread", "3", "--seal-drift", "5",
+                                         "--fault", "balance_piston_wear=1.5@run2", "--config", cfg.string(), "--fast",
+                                         "--domain", std::to_string(domain), "--partition", partition,
+                                         "--spool-dir", (dir / "spool").string(), "--timeout", "60"};
+  Process agent(argv, env, (dir / "agent.log").string());
+  ASSERT_EQ(agent.wait(300s), 0) << agent.log() << "\n--- server ---\n" << server->log();
+  EXPECT_NE(agent.log().find("loop rebuilt in"), std::string::npos) << agent.log();
+
+  httplib::Client http("127.0.0.1", port);
+  const auto list = http.Get("/api/v1/pumps/SIM-8/runs");
+  ASSERT_TRUE(list);
+  const auto runs = nlohmann::json::parse(list->body).at("runs");
+  ASSERT_EQ(runs.size(), 2u) << list->body;
+  std::set<int64_t> seen;
+  for (const auto& r : runs) {
+    const auto one = http.Get("/api/v1/runs/" + server::url_encode_segment(r.at("run_id").get<std::string>()));
+    ASSERT_TRUE(one);
+    const auto j = nlohmann::json::parse(one->body);
+    const auto& truth = j.at("header").at("simulation");
+    const int64_t n = truth.at("run").get<int64_t>();
+    seen.insert(n);
+    EXPECT_EQ(truth.at("speed_rpm").get<double>(), j.at("speed_rpm").get<double>()) << one->body;
+    EXPECT_NEAR(truth.at("speed_rpm").get<double>(), 2950, 0.03 * 2950);
+    EXPECT_EQ(truth.at("seal_factors").size(), 2u);
+    EXPECT_EQ(truth.at("faults").at(0).at("active").get<bool>(), n == 2) << one->body;
+  }
+  EXPECT_EQ(seen, (std::set<int64_t>{1, 2}));
+  server->signal(SIGTERM);
+  EXPECT_EQ(server->wait(15s), 0) << server->log();
+}
+
+TEST_F(StreamTest, MalformedFaultScheduleIsAUsageError) {
+  for (const std::string bad : {"balance_piston_wear=1.3@5", "balance_piston_wear=1.0..1.6", "bearing_fire"}) {
+    Process agent({AMBDIAG_AGENT, "simulate", "--model", data_file("reference_pump/plant.json").string(), "--pump",
+                   "SIM-9", "--fault", bad, "--spool-dir", (dir / "spool").string()},
+                  env, (dir / ("bad" + std::to_string(log_n++) + ".log")).string());
+    EXPECT_EQ(agent.wait(30s), 2) << bad << "\n" << agent.log();
+    EXPECT_NE(agent.log().find(bad), std::string::npos) << agent.log();
+  }
 }
 
 }  // namespace

@@ -3,7 +3,8 @@
 //    "schedule": {"identification_interval_s": 3600, "monitoring_interval_s": 60, "runs": 0},
 //    "simulation": {"excitation": "multisine", "faults": ["dry_run"], "sample_rate_hz": 2048,
 //                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
-//                   "meas_periods": 4, "monitoring_s": 1, "seed": 1},
+//                   "meas_periods": 4, "monitoring_s": 1, "seed": 1, "speed_spread_pct": 2,
+//                   "seal_drift_pct": 5, "seal_drift_link_pct": 1},
 //    "dds": {"domain": 0, "partition": "site-a", "checksum": "xxh64"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
 //    "block_frames": 512}
@@ -21,7 +22,10 @@ namespace ambdiag::agent {
 // meaning and defaults of each).
 struct SimulationConfig {
   std::string excitation = "multisine";  // multisine | stepsine
-  std::vector<std::string> faults;       // NAME or NAME=VALUE
+  std::vector<std::string> faults;       // NAME[=V|=A..B][@runK[..M]] (simulate.h FaultSchedule)
+  double speed_spread_pct = 0.0;         // 0..20; per-run speed, simulate.h
+  double seal_drift_pct = 0.0;           // 0..20; per-run seal drift, common
+  double seal_drift_link_pct = 0.0;      // 0..20; per-run seal drift, per link
   double sample_rate_hz = 2048.0;
   int64_t period_samples = 2048;
   double f_min_hz = 1.0;

@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -30,6 +31,9 @@ class SnapshotPublisher {
   SnapshotPublisher(const SnapshotPublisher&) = delete;
   SnapshotPublisher& operator=(const SnapshotPublisher&) = delete;
   long published() const { return published_; }
+  // Snapshots from now on show the pump of identification run n (its
+  // speed, seal drift and faults: PumpSimulator::set_operating_state).
+  void follow_run(int64_t n) { run_ = n; }
 
  private:
   void run();
@@ -39,6 +43,7 @@ class SnapshotPublisher {
   std::unique_ptr<PumpSimulator> sim_;
   double interval_s_;
   std::atomic<long> published_{0};
+  std::atomic<int64_t> run_{1};
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stop_ = false;
