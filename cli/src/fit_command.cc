@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ambdiag/algorithms/fit_report.h"
 #include "ambdiag/algorithms/mode_labels.h"
 #include "ambdiag/algorithms/modal_analysis.h"
 #include "ambdiag/algorithms/rational_fit.h"
@@ -14,7 +15,6 @@
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"
-#include "ambdiag/core/svg_plot.h"
 #include "args.h"
 #include "command.h"
 
@@ -23,65 +23,6 @@ namespace ambdiag::cli {
 namespace {
 
 using nlohmann::json;
-
-json identified_json(const ModeDescription& d, const std::vector<Mode>* model) {
-  json j = {{"f_hz", d.mode.f_hz},       {"zeta", d.mode.zeta},       {"f_sd_hz", d.mode.f_sd_hz},
-            {"zeta_sd", d.mode.zeta_sd}, {"direction", d.direction}, {"whirl", to_string(d.whirl)},
-            {"outputs", d.outputs},      {"inputs", d.inputs},       {"peak_snr", d.mode.peak_snr},
-            {"stable_orders", d.mode.stable_orders}};
-  if (!d.label.empty()) j["label"] = d.label;
-  if (model && d.model_index >= 0) {
-    const Mode& m = (*model)[static_cast<size_t>(d.model_index)];
-    j["model_f_hz"] = m.f_hz;
-    j["model_zeta"] = m.zeta;
-  }
-  return j;
-}
-
-json model_mode_json(const Mode& m) {
-  json j = {{"f_hz", m.f_hz}, {"zeta", m.zeta}, {"direction", m.direction}, {"whirl", to_string(m.whirl)}};
-  if (!m.label.empty()) j["label"] = m.label;
-  return j;
-}
-
-// Stabilization diagram: poles of every order over frequency, stable ones
-// filled, the chosen order marked; the mean |H| underneath for orientation.
-std::string stabilization_svg(const RationalFitResult& fit, const FrfData& frf) {
-  SvgFigure fig;
-  fig.title = "Stabilization diagram (selected: " + std::to_string(fit.selected_modes) + " pole pairs)";
-  fig.x_label = "frequency (Hz)";
-  SvgPanel poles;
-  poles.y_label = "model order (pole pairs)";
-  SvgSeries stable{"stable in f and zeta", {}, {}, "#1f77b4", true};
-  SvgSeries other{"new or moving", {}, {}, "#bbbbbb", true};
-  SvgSeries chosen{"selected model (after ML)", {}, {}, "#d62728", true};
-  for (const auto& row : fit.stabilization) {
-    for (size_t k = 0; k < row.poles.size(); ++k) {
-      if (row.poles[k].imag() == 0.0) continue;
-      SvgSeries& s = row.stable[k] ? stable : other;
-      s.x.push_back(std::abs(row.poles[k]) / (2 * M_PI));
-      s.y.push_back(row.modes);
-    }
-  }
-  for (const auto& m : fit.modes) {
-    chosen.x.push_back(m.f_hz);
-    chosen.y.push_back(fit.selected_modes);
-  }
-  poles.series = {other, stable, chosen};
-  SvgPanel mag;
-  mag.y_label = "mean |H|";
-  mag.log_y = true;
-  SvgSeries mean{"mean |H| over entries", {}, {}, "#333333"};
-  for (size_t l = 0; l < frf.freq_hz.size(); ++l) {
-    double s = 0.0;
-    for (const auto& e : frf.entries) s += std::abs(e.h[l]);
-    mean.x.push_back(frf.freq_hz[l]);
-    mean.y.push_back(s / static_cast<double>(frf.entries.size()));
-  }
-  mag.series = {mean};
-  fig.panels = {poles, mag};
-  return render_svg(fig);
-}
 
 void print_table(const ModePairing& pairing, const std::vector<Mode>* model) {
   struct Row {
@@ -159,42 +100,13 @@ int run_fit(const std::vector<std::string>& argv) {
 
   if (auto svg = args.option("--svg")) write_file_atomic(*svg, stabilization_svg(fit, frf));
 
-  int order = 0;
-  for (const auto& p : fit.model.poles) order += p.imag() == 0.0 ? 1 : 2;
   if (args.flag("--json")) {
-    json out = {{"order", order},
-                {"pole_pairs", fit.model.pair_count()},
-                {"numerator_power", fit.numerator_power},
-                {"modes", json::array()},
-                {"fit",
-                 {{"chi2_per_dof", fit.report.chi2_per_dof},
-                  {"converged", fit.report.converged},
-                  {"stop_reason", fit.report.stop_reason},
-                  {"ml_iterations", fit.report.ml_iterations},
-                  {"entries_fitted", fit.entries.size()},
-                  {"sigma_from_data", fit.report.sigma_from_data},
-                  {"delay_fitted", fit.report.delay_fitted},
-                  {"delay_s", fit.report.delay_s},
-                  {"delay_sd_s", fit.report.delay_sd_s}}}};
-    for (const auto& d : pairing.identified) out["modes"].push_back(identified_json(d, plant ? &model_modes : nullptr));
-    if (plant) {
-      out["unmatched_model_modes"] = json::array();
-      for (int i : pairing.unmatched_model) out["unmatched_model_modes"].push_back(model_mode_json(model_modes[static_cast<size_t>(i)]));
-      out["unmatched_identified_modes"] = json::array();
-      for (int i : pairing.unmatched_identified)
-        out["unmatched_identified_modes"].push_back(identified_json(pairing.identified[static_cast<size_t>(i)], nullptr));
-    }
-    out["stabilization"] = json::array();
-    for (const auto& row : fit.stabilization) {
-      json poles = json::array();
-      for (size_t k = 0; k < row.poles.size(); ++k)
-        poles.push_back({{"f_hz", std::abs(row.poles[k]) / (2 * M_PI)}, {"zeta", -row.poles[k].real() / std::abs(row.poles[k])},
-                         {"stable", static_cast<bool>(row.stable[k])}});
-      out["stabilization"].push_back({{"pole_pairs", row.modes}, {"criterion", row.criterion}, {"poles", poles}});
-    }
+    const json out = fit_to_json(fit, pairing, plant ? &model_modes : nullptr);
     std::cout << out.dump(2) << "\n";
     return kExitOk;
   }
+  int order = 0;
+  for (const auto& p : fit.model.poles) order += p.imag() == 0.0 ? 1 : 2;
   std::printf("%zu modes identified (%d pole pairs, order %d, chi2/dof %.3f%s)\n", fit.modes.size(), fit.model.pair_count(),
               order, fit.report.chi2_per_dof, fit.report.sigma_from_data ? "" : ", no sigma in the file");
   if (fit.report.delay_fitted)

@@ -6,9 +6,12 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <thread>
 
+#include "ambdiag/core/process_lock.h"
+#include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/ingest.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
@@ -32,8 +35,10 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 }
 
 int run_serve(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms"},
-                  {"--quiet", "--bench-inline-checkpoints"});
+  const Args args(argv,
+                  {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
+                   "--workers", "--reference-runs", "--alpha"},
+                  {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -48,19 +53,39 @@ int run_serve(const std::vector<std::string>& argv) {
   opt.verbose = !args.flag("--quiet");
   opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
 
+  server::AnalysisOptions aopt;
+  aopt.db_path = *db;
+  aopt.workers = integer_in(args, "--workers", 0, 64, 2);
+  aopt.proposed_reference_runs = integer_in(args, "--reference-runs", 1, 100, 3);
+  aopt.alpha = args.number("--alpha").value_or(aopt.alpha);
+  if (!(aopt.alpha > 0 && aopt.alpha < 0.5)) throw UsageError("--alpha: must be in (0, 0.5)");
+  aopt.verbose = opt.verbose;
+
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
 
+  // One server per historian file: two would both ingest and both analyse.
+  const ProcessLock lock(*db + ".lock", "historian " + *db, "ambdiag serve",
+                         "; one server per historian file (several servers share a PostgreSQL database)");
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs.
   if (!args.flag("--bench-inline-checkpoints")) historian.checkpoint_in_background();
+  std::optional<server::AnalysisService> analysis;
+  if (aopt.workers > 0) {
+    analysis.emplace(aopt);
+    opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
+  }
   server::Ingest ingest(historian, opt);
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
-  rest_opt.health_extra = [&ingest, &historian] {
+  rest_opt.analysis = analysis ? &*analysis : nullptr;
+  rest_opt.anonymous_read = args.flag("--anonymous-read");
+  rest_opt.proposed_reference_runs = aopt.proposed_reference_runs;
+  rest_opt.health_extra = [&ingest, &historian, &analysis] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"ingest", ingest.health()},
+                          {"jobs", analysis ? analysis->counters() : nlohmann::json(nullptr)},
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
                                            {"pages_copied", ck.pages_copied},
@@ -71,6 +96,7 @@ int run_serve(const std::vector<std::string>& argv) {
   const int bound_port = rest.start();
   std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d\n", db->c_str(),
                opt.domain, opt.partitions.front().c_str(), bound_port);
+  if (analysis) analysis->start();
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
   // Progress on stderr every 5 s while something changes.
@@ -93,6 +119,7 @@ int run_serve(const std::vector<std::string>& argv) {
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
   rest.stop();
+  if (analysis) analysis->stop();
   const auto& c = ingest.counters();
   const auto h = ingest.health();
   std::fprintf(stderr,
@@ -112,11 +139,18 @@ std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--quiet]\n"
+           "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
            "the REST read side on port N. A run whose agent falls silent for S seconds\n"
            "(default 10) before its end is marked incomplete. SIGINT/SIGTERM stop it cleanly.\n"
+           "Every complete identification run of a pump with a model is analysed by N worker\n"
+           "threads (--workers, default 2; 0: store only) at idle priority: FRF, modal fit, detection\n"
+           "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-4), diagnosis.\n"
+           "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
+           "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
+           "requests without one read as viewer. One server per historian file (FILE.lock).\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"

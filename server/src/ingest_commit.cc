@@ -114,7 +114,11 @@ void Committer::verdict(Staged& st, const std::string& run_id, std::optional<sto
   st.ended[run_id] = true;
   st.stream_progress = true;
   if (after == RunStatus::complete) {
-    if (before != RunStatus::complete) ++st.complete, st.log.push_back("run " + run_id + ": complete");
+    if (before != RunStatus::complete) {
+      ++st.complete;
+      st.log.push_back("run " + run_id + ": complete");
+      st.completed.push_back(run_id);
+    }
     st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_COMPLETE, "complete: count and checksum verified"});
   } else {
     if (before == RunStatus::receiving) ++st.incomplete, st.log.push_back("run " + run_id + ": incomplete: " + reason);
@@ -202,6 +206,9 @@ void Committer::commit(std::vector<Work>& batch) {
   for (auto& [run_id, seqs] : st.stored_seqs) ack_ranges(run_id, std::move(seqs));
   for (const auto& v : st.verdicts) send(v);
   for (const auto& l : st.log) log_line(opt_.verbose, l);
+  // After the commit: whoever analyses the run reads it complete.
+  if (opt_.on_run_complete)
+    for (const auto& id : st.completed) opt_.on_run_complete(id);
 }
 
 }  // namespace ambdiag::server::detail

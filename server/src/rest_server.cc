@@ -8,7 +8,9 @@
 #include <thread>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/server/analysis_service.h"
 #include "reader_pool.h"
+#include "rest_routes.h"
 #include "rest_json.h"
 #include "url.h"
 
@@ -18,14 +20,8 @@ namespace {
 
 using Segments = std::vector<std::string>;
 
-void send_json(httplib::Response& res, int status, const nlohmann::json& body) {
-  res.status = status;
-  res.set_content(detail::dump(body), "application/json");
-}
-
-void send_error(httplib::Response& res, int status, const std::string& message) {
-  send_json(res, status, {{"error", message}});
-}
+using detail::send_error;
+using detail::send_json;
 
 // Joins segments [from, to) with '/': a run_id sent with its '/' unencoded
 // still finds its run.
@@ -35,27 +31,90 @@ std::string join(const Segments& s, size_t from, size_t to) {
   return out;
 }
 
-enum class Route { health, pumps, pump_runs, pump_monitoring, run, samples, none };
+enum class Route {
+  health, pumps, pump, pump_runs, pump_monitoring, pump_model, pump_models, pump_reference,
+  run, samples, run_analysis, run_file, run_explain,
+  jobs, job, job_file, job_adopt, job_cancel, none
+};
 
 struct Match {
   Route route = Route::none;
-  std::string id;  // pump_id or run_id
+  std::string id;    // pump_id, run_id or job_id
+  std::string name;  // a file's name
 };
+
+// The files of a run's analysis served under the run's URL.
+bool is_run_file(const std::string& s) {
+  return s == "frf.csv" || s == "bode.svg" || s == "stabilization.svg" || s == "diagnosis.svg";
+}
 
 Match match(const Segments& s) {
   if (s.size() < 3 || s[0] != "api" || s[1] != "v1") return {};
-  if (s.size() == 3 && s[2] == "health") return {Route::health, ""};
+  if (s.size() == 3 && s[2] == "health") return {Route::health, "", ""};
   if (s[2] == "pumps") {
-    if (s.size() == 3) return {Route::pumps, ""};
-    if (s.size() == 5 && s[4] == "runs" && !s[3].empty()) return {Route::pump_runs, s[3]};
-    if (s.size() == 5 && s[4] == "monitoring" && !s[3].empty()) return {Route::pump_monitoring, s[3]};
+    if (s.size() == 3) return {Route::pumps, "", ""};
+    if (s[3].empty()) return {};
+    if (s.size() == 4) return {Route::pump, s[3], ""};
+    if (s.size() != 5) return {};
+    if (s[4] == "runs") return {Route::pump_runs, s[3], ""};
+    if (s[4] == "monitoring") return {Route::pump_monitoring, s[3], ""};
+    if (s[4] == "model") return {Route::pump_model, s[3], ""};
+    if (s[4] == "models") return {Route::pump_models, s[3], ""};
+    if (s[4] == "reference") return {Route::pump_reference, s[3], ""};
     return {};
   }
   if (s[2] == "runs" && s.size() >= 4) {
-    if (s.size() >= 5 && s.back() == "samples.f32") return {Route::samples, join(s, 3, s.size() - 1)};
-    return {Route::run, join(s, 3, s.size())};
+    if (s.size() >= 5) {
+      const std::string& last = s.back();
+      const std::string id = join(s, 3, s.size() - 1);
+      if (last == "samples.f32") return {Route::samples, id, ""};
+      if (last == "analysis") return {Route::run_analysis, id, ""};
+      if (last == "explain") return {Route::run_explain, id, ""};
+      if (is_run_file(last)) return {Route::run_file, id, last};
+    }
+    return {Route::run, join(s, 3, s.size()), ""};
+  }
+  if (s[2] == "jobs") {
+    if (s.size() == 3) return {Route::jobs, "", ""};
+    if (s.size() == 4) return {Route::job, s[3], ""};
+    if (s.size() == 5 && s[4] == "adopt") return {Route::job_adopt, s[3], ""};
+    if (s.size() == 5 && s[4] == "cancel") return {Route::job_cancel, s[3], ""};
+    if (s.size() == 6 && s[4] == "files") return {Route::job_file, s[3], s[5]};
   }
   return {};
+}
+
+// Which method each route answers and the role it needs (rest.md "Who may
+// do what"); nullopt: method not allowed.
+struct Access {
+  bool allowed;
+  std::optional<storage::Role> role;  // nullopt: open to all (health)
+};
+Access access(Route r, const std::string& method) {
+  using storage::Role;
+  const bool get = method == "GET" || method == "HEAD";
+  switch (r) {
+    case Route::health: return {get, std::nullopt};
+    case Route::pump_model:
+    case Route::pump_reference:
+      if (method == "PUT") return {true, Role::engineer};
+      return {get, Role::viewer};
+    case Route::run_explain:
+    case Route::job_adopt:
+    case Route::job_cancel: return {method == "POST", Role::engineer};
+    default: return {get, Role::viewer};
+  }
+}
+
+std::string allow_header(Route r) {
+  switch (r) {
+    case Route::pump_model:
+    case Route::pump_reference: return "GET, HEAD, PUT";
+    case Route::run_explain:
+    case Route::job_adopt:
+    case Route::job_cancel: return "POST";
+    default: return "GET, HEAD";
+  }
 }
 
 }  // namespace
@@ -70,10 +129,25 @@ struct RestServer::Impl {
 
   explicit Impl(RestOptions o) : opt(std::move(o)), pool(opt.db_path, std::max(1, opt.worker_threads)) {}
 
-  void handle_get(const httplib::Request& req, httplib::Response& res) {
+  void handle(const httplib::Request& req, httplib::Response& res) {
     const auto segments = detail::split_path(req.target);
     if (!segments) return send_error(res, 400, "bad path or percent-encoding: " + req.target);
     const Match m = match(*segments);
+    if (m.route == Route::none) return send_error(res, 404, "no such resource: " + req.path);
+    const Access a = access(m.route, req.method);
+    if (!a.allowed) {
+      res.set_header("Allow", allow_header(m.route));
+      return send_error(res, 405, req.method + " not allowed on " + req.path + " (allowed: " + allow_header(m.route) + ")");
+    }
+    std::optional<detail::Caller> caller;
+    if (a.role) {
+      caller = detail::authorize(pool, req, *a.role, opt.anonymous_read, res);
+      if (!caller) return;  // 401 or 403 sent
+    }
+    const bool write = req.method == "PUT" || req.method == "POST";
+    if (write && !opt.analysis)
+      return send_error(res, 503, "this server runs without the analysis service: " + req.method + " " + req.path + " is not served");
+    detail::RouteContext ctx{pool, opt, caller.value_or(detail::Caller{}), req, res};
     switch (m.route) {
       case Route::health: return health(res);
       case Route::pumps: return pumps(res);
@@ -81,17 +155,21 @@ struct RestServer::Impl {
       case Route::pump_monitoring: return pump_monitoring(req, res, m.id);
       case Route::run: return run(res, m.id);
       case Route::samples: return samples(res, m.id);
+      case Route::pump: return detail::get_pump(ctx, m.id);
+      case Route::pump_model: return write ? detail::put_model(ctx, m.id) : detail::get_model(ctx, m.id);
+      case Route::pump_models: return detail::get_models(ctx, m.id);
+      case Route::pump_reference: return write ? detail::put_reference(ctx, m.id) : detail::get_reference(ctx, m.id);
+      case Route::run_analysis: return detail::get_analysis(ctx, m.id);
+      case Route::run_file: return detail::get_run_file(ctx, m.id, m.name);
+      case Route::run_explain: return detail::post_explain(ctx, m.id);
+      case Route::jobs: return detail::get_jobs(ctx);
+      case Route::job: return detail::get_job(ctx, m.id);
+      case Route::job_file: return detail::get_job_file(ctx, m.id, m.name);
+      case Route::job_adopt: return detail::post_adopt(ctx, m.id);
+      case Route::job_cancel: return detail::post_cancel(ctx, m.id);
       case Route::none: break;
     }
     send_error(res, 404, "no such resource: " + req.path);
-  }
-
-  void handle_other(const httplib::Request& req, httplib::Response& res) {
-    const auto segments = detail::split_path(req.target);
-    if (!segments) return send_error(res, 400, "bad path or percent-encoding: " + req.target);
-    if (match(*segments).route == Route::none) return send_error(res, 404, "no such resource: " + req.path);
-    res.set_header("Allow", "GET, HEAD");
-    send_error(res, 405, req.method + " not allowed; this resource is read-only (GET)");
   }
 
   void health(httplib::Response& res) {
@@ -202,20 +280,23 @@ RestServer::RestServer(RestOptions options) : impl_(std::make_unique<Impl>(std::
   http.set_keep_alive_timeout(std::max(1, impl->opt.keep_alive_timeout_s));
   http.set_keep_alive_max_count(static_cast<size_t>(std::max(1, impl->opt.keep_alive_max_requests)));
   http.set_read_timeout(5, 0);
-  http.set_payload_max_length(64 * 1024);  // read-only API: no large bodies
-  const auto get = [impl](const httplib::Request& req, httplib::Response& res) { impl->handle_get(req, res); };
-  const auto other = [impl](const httplib::Request& req, httplib::Response& res) { impl->handle_other(req, res); };
-  http.Get(".*", get);
-  http.Post(".*", other);
-  http.Put(".*", other);
-  http.Patch(".*", other);
-  http.Delete(".*", other);
-  http.Options(".*", other);
+  http.set_payload_max_length(impl->opt.max_body_bytes);  // beyond: 413 before the handler runs
+  const auto handle = [impl](const httplib::Request& req, httplib::Response& res) { impl->handle(req, res); };
+  http.Get(".*", handle);
+  http.Post(".*", handle);
+  http.Put(".*", handle);
+  http.Patch(".*", handle);
+  http.Delete(".*", handle);
+  http.Options(".*", handle);
   http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     try {
       std::rethrow_exception(ep);
     } catch (const InputError& e) {
       send_error(res, 400, e.what());
+    } catch (const NotFoundError& e) {
+      send_error(res, 404, e.what());
+    } catch (const ConflictError& e) {
+      send_error(res, 409, e.what());
     } catch (const std::exception& e) {
       send_error(res, 500, std::string("internal error: ") + e.what());
     } catch (...) {

@@ -34,7 +34,9 @@ class Rest : public ::testing::Test {
     storage::import_recording(*writer_, ref_dir_.string());
   }
 
+  // Read-side tests: open reads (tokens and roles: rest_auth_test.cc).
   void start(RestOptions opt = {}) {
+    opt.anonymous_read = true;
     opt.db_path = db_path_;
     opt.host = "127.0.0.1";
     server_ = std::make_unique<RestServer>(std::move(opt));
@@ -206,7 +208,8 @@ TEST_F(Rest, UnknownThingsAre404AndBadEncodings400AlwaysAsJson) {
   start();
   auto c = client();
   for (const char* path : {"/", "/api", "/api/v1", "/api/v2/health", "/api/v1/health/x", "/api/v1/pumps/",
-                           "/api/v1/pumps/P-101", "/api/v1/pumps/P-101/runs/x", "/api/v1/runs/nope",
+                           "/api/v1/pumps/P-404", "/api/v1/pumps/P-101/runs/x", "/api/v1/pumps/P-101/nothing",
+                           "/api/v1/runs/nope", "/api/v1/runs/nope/analysis", "/api/v1/jobs/99",
                            "/api/v1/runs/nope/samples.f32", "/api/v1/runs/%00", "/api/v1/runs/%FF%FE%80",
                            "/api/v1/runs/..%2F..%2Fetc%2Fpasswd", "/api/v1/runs/a%2Fb%3Ac/samples.f32"}) {
     const auto r = c.Get(path);

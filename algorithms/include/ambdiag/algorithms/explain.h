@@ -111,4 +111,8 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
 // The JSON document of cli.md (plus extra keys: entries, modes, noise floor).
 nlohmann::json explain_to_json(const ExplainResult& r);
 
+// Measured vs model vs improved model (|H| and phase) of the four entries
+// with the largest mismatch, mismatch bands shaded: an SVG document.
+std::string explain_svg(const ExplainResult& r, const FrfData& measured);
+
 }  // namespace ambdiag

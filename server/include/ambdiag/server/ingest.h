@@ -22,6 +22,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -54,6 +55,9 @@ struct IngestOptions {
   bool verbose = true;                  // log runs and rejections on stderr
   // Added to every commit: emulates a slow disk (bench_stream's memory check).
   std::chrono::milliseconds commit_delay{0};
+  // Called from the commit thread after the commit that made a run
+  // complete (the analysis queues it); must be quick and must not throw.
+  std::function<void(const std::string& run_id)> on_run_complete;
 };
 
 // Counters, readable from any thread (REST health).

@@ -1,4 +1,5 @@
-// The REST read side of the server (../shared/specs/cli.md, "REST"):
+// The REST side of the server (../shared/specs/cli.md "REST" and
+// ../shared/specs/rest.md; docs/service.md lists every route):
 //
 //   GET /api/v1/health
 //   GET /api/v1/pumps
@@ -6,16 +7,20 @@
 //   GET /api/v1/pumps/{pump_id}/monitoring?since=TIME&limit=N   monitoring snapshots
 //   GET /api/v1/runs/{run_id}              run_id URL-encoded ('/' as %2F, ':' as %3A)
 //   GET /api/v1/runs/{run_id}/samples.f32  application/octet-stream, the exact bytes
+//   pumps' models and references, runs' analyses and their files, jobs,
+//   explain requests (rest.md), with `Authorization: Bearer TOKEN` and roles
 //
-// JSON everywhere else; errors are {"error": "..."} with 400 (bad encoding),
-// 404 (unknown path, pump or run), 405 (other methods). docs/storage.md has
-// the response keys.
+// JSON everywhere else; errors are {"error": "..."} with 400 (bad request),
+// 401 (no or unknown token), 403 (role too low), 404 (unknown path, pump,
+// run or job), 405 (method), 409 (state), 413 (body too large), 503 (a
+// write on a server without the analysis service).
 //
 // It reads the historian through its own read connections (one per worker
 // thread, opened on demand), so it runs beside the one writer (the DDS
 // ingest of `ambdiag serve`) in the same process without locking it.
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <string>
@@ -23,6 +28,8 @@
 #include <nlohmann/json.hpp>
 
 namespace ambdiag::server {
+
+class AnalysisService;
 
 struct RestOptions {
   std::string db_path;          // must exist with the current schema (a writer creates it)
@@ -37,6 +44,12 @@ struct RestOptions {
   // Extra keys merged into GET /api/v1/health (e.g. ingest counters). Called
   // from worker threads, so it must be thread-safe.
   std::function<nlohmann::json()> health_extra;
+  // Writes (models, references, explain) go to it; null: they answer 503.
+  AnalysisService* analysis = nullptr;
+  // Requests without a token act as `viewer` (rest.md, --anonymous-read).
+  bool anonymous_read = false;
+  int proposed_reference_runs = 3;        // shown as the proposed reference of a pump without one
+  std::size_t max_body_bytes = 8u << 20;  // larger bodies: 413
 };
 
 class RestServer {

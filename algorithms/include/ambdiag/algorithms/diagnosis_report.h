@@ -1,0 +1,15 @@
+// The `diagnose` JSON of ../shared/specs/cli.md, shared by the command line
+// and the server's analysis of every run: detection, symptoms, ranked
+// faults with parameters, intervals and locations, the fit before and after.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/algorithms/diagnosis.h"
+#include "ambdiag/core/plant_model.h"
+
+namespace ambdiag {
+
+nlohmann::json diagnosis_to_json(const DiagnosisResult& result, const PlantModel& plant);
+
+}  // namespace ambdiag

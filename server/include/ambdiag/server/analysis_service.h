@@ -1,0 +1,91 @@
+// The server's analysis side (rest.md "Pumps, models, references" and
+// "Analysis, without being asked"; docs/service.md): it keeps each pump's
+// models and references, queues one analysis job per complete
+// identification run of a pump with a model, and runs the jobs on worker
+// threads that only take the CPU ingest leaves (SCHED_IDLE).
+//
+// Jobs live in the historian (storage/service.h), so a job that was running
+// when the server died is queued again at the next start, and a result is
+// stored once: a worker's result is refused when its attempt no longer
+// holds the job. Changing a pump's model or reference queues the runs again
+// against the new versions and cancels what the old ones still had queued.
+//
+// Threads: every public call may come from any thread (REST workers, the
+// ingest's commit thread); each thread here has its own connection.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace ambdiag::server {
+
+struct AnalysisOptions {
+  std::string db_path;
+  int workers = 2;              // analysis threads
+  int proposed_reference_runs = 3;  // first N complete identification runs proposed as the reference
+  double alpha = 1e-4;          // false-alarm rate of detection per run (docs/diagnosis.md)
+  bool idle_priority = true;    // workers at SCHED_IDLE: ingest and REST first
+  bool verbose = true;          // one line per job on stderr
+};
+
+// A request refused for the state it finds: HTTP 409 (rest.md).
+class ConflictError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+// Something the request names does not exist: HTTP 404.
+class NotFoundError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class AnalysisService {
+ public:
+  explicit AnalysisService(AnalysisOptions options);
+  ~AnalysisService();  // stops and joins
+  AnalysisService(const AnalysisService&) = delete;
+  AnalysisService& operator=(const AnalysisService&) = delete;
+
+  // Requeues what a dead server left running, queues every run that lacks
+  // its analysis, starts the workers.
+  void start();
+  // Finishes nothing new: running jobs are abandoned (queued again at the
+  // next start) after their current stage; joins. Idempotent.
+  void stop();
+
+  // A run was stored complete (called by ingest after its commit).
+  void notify_run_complete(const std::string& run_id);
+
+  // PUT .../model: a new version; InputError (400) when the plant does not
+  // parse, naming the field.
+  int put_model(const std::string& pump_id, const std::string& plant_json, const std::string& by);
+  struct ReferenceReply {
+    std::int64_t job_id;
+    int reference_version;
+  };
+  // PUT .../reference: InputError for bad runs, NotFoundError for an
+  // unknown pump, ConflictError when the pump has no model.
+  ReferenceReply put_reference(const std::string& pump_id, const std::vector<std::string>& run_ids, const std::string& by);
+  // POST .../explain: the explain job of the run against the current model.
+  std::int64_t request_explain(const std::string& run_id, const std::string& by);
+  // POST /jobs/{id}/adopt: a done explain job's improved model becomes the
+  // pump's next model version. Returns it.
+  int adopt_explained_model(std::int64_t job_id, const std::string& by);
+  // POST /jobs/{id}/cancel: a queued job is cancelled (ConflictError otherwise).
+  void cancel_job(std::int64_t job_id, const std::string& by);
+
+  // Jobs finished, failed, CPU seconds by kind (for health and metrics).
+  nlohmann::json counters() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ambdiag::server

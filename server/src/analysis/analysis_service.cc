@@ -1,0 +1,211 @@
+#include "ambdiag/server/analysis_service.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <ctime>
+#include <deque>
+#include <mutex>
+#include <thread>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/storage/historian.h"
+#include "job_runner.h"
+#include "run_analysis.h"
+#include "views.h"
+
+namespace ambdiag::server {
+
+using storage::Historian;
+using storage::JobKey;
+
+struct AnalysisService::Impl {
+  AnalysisOptions opt;
+  std::mutex ctl_mu;               // guards ctl: the connection of REST writes and the scheduler
+  std::optional<Historian> ctl;
+  detail::JobCounters counters;
+
+  std::mutex mu;                   // guards pending, stopping
+  std::condition_variable cv;      // scheduler: a run to schedule, or stop
+  std::deque<std::string> pending;
+  bool stopping = false;
+  std::atomic<bool> stop_flag{false};
+  detail::WorkSignal work;         // wakes idle workers when jobs are queued
+  std::thread scheduler;
+  std::vector<std::thread> workers;
+
+  explicit Impl(AnalysisOptions o) : opt(std::move(o)) {}
+
+  // One analysis job for the run against the pump's current versions (and
+  // the reference job it needs). Idempotent. Caller holds ctl_mu.
+  bool schedule_run_locked(const storage::RunInfo& run) {
+    if (run.status != storage::RunStatus::complete || run.kind != "identification") return false;
+    const auto model = ctl->find_model(run.pump_id);
+    if (!model) return false;
+    const auto ref = ctl->find_reference(run.pump_id);
+    const int r = ref ? ref->version : 0;
+    if (ctl->find_job(JobKey{"analysis", run.pump_id, run.run_id, model->version, r})) return false;
+    std::optional<std::int64_t> depends;
+    if (ref) depends = ctl->enqueue_job(JobKey{"reference", run.pump_id, "", model->version, r}).first;
+    return ctl->enqueue_job(JobKey{"analysis", run.pump_id, run.run_id, model->version, r}, "{}", depends).second;
+  }
+
+  // Every run of the pump against its current versions; what older versions
+  // still had queued is cancelled. Caller holds ctl_mu.
+  int schedule_pump_locked(const std::string& pump_id) {
+    const auto model = ctl->find_model(pump_id);
+    if (!model) return 0;
+    const auto ref = ctl->find_reference(pump_id);
+    const int r = ref ? ref->version : 0;
+    for (const char* kind : {"analysis", "reference"}) ctl->cancel_superseded_jobs(pump_id, kind, model->version, r);
+    int n = 0;
+    for (const auto& run : ctl->list_runs(pump_id)) n += schedule_run_locked(run) ? 1 : 0;
+    return n;
+  }
+
+  void scheduler_loop() {
+    for (;;) {
+      std::string run_id;
+      {
+        std::unique_lock lock(mu);
+        cv.wait(lock, [&] { return stopping || !pending.empty(); });
+        if (stopping) return;
+        run_id = std::move(pending.front());
+        pending.pop_front();
+      }
+      try {
+        std::lock_guard lock(ctl_mu);
+        if (const auto run = ctl->find_run(run_id); run && schedule_run_locked(*run)) work.notify();
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "ambdiag serve: cannot queue the analysis of run %s: %s\n", run_id.c_str(), e.what());
+      }
+    }
+  }
+};
+
+AnalysisService::AnalysisService(AnalysisOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
+  impl_->ctl.emplace(Historian::open(impl_->opt.db_path, Historian::Mode::write));
+}
+
+AnalysisService::~AnalysisService() { stop(); }
+
+void AnalysisService::start() {
+  auto& I = *impl_;
+  if (!I.workers.empty() || I.scheduler.joinable()) return;
+  {
+    std::lock_guard lock(I.ctl_mu);
+    const int requeued = I.ctl->requeue_running_jobs();
+    int queued = 0;
+    for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
+    if (I.opt.verbose && (requeued > 0 || queued > 0))
+      std::fprintf(stderr, "ambdiag serve: %d interrupted jobs queued again, %d runs queued for analysis\n", requeued, queued);
+  }
+  I.scheduler = std::thread([&I] { I.scheduler_loop(); });
+  for (int k = 0; k < std::max(1, I.opt.workers); ++k) {
+    I.workers.emplace_back([&I, k] {
+      if (I.opt.idle_priority) {
+        // Analysis takes only what ingest and REST leave: a job is minutes
+        // late at worst, a block never is.
+        sched_param p{};
+        pthread_setschedparam(pthread_self(), SCHED_IDLE, &p);
+      }
+      detail::JobRunner runner(I.opt, "worker-" + std::to_string(k), I.counters, I.work, I.stop_flag);
+      runner.run();
+    });
+  }
+}
+
+void AnalysisService::stop() {
+  auto& I = *impl_;
+  {
+    std::lock_guard lock(I.mu);
+    I.stopping = true;
+  }
+  I.stop_flag = true;
+  I.cv.notify_all();
+  I.work.notify_all();
+  if (I.scheduler.joinable()) I.scheduler.join();
+  for (auto& t : I.workers) t.join();
+  I.workers.clear();
+}
+
+void AnalysisService::notify_run_complete(const std::string& run_id) {
+  {
+    std::lock_guard lock(impl_->mu);
+    impl_->pending.push_back(run_id);
+  }
+  impl_->cv.notify_one();
+}
+
+int AnalysisService::put_model(const std::string& pump_id, const std::string& plant_json, const std::string& by) {
+  detail::plant_from_text(plant_json, "model of pump " + pump_id);  // InputError names the field
+  std::lock_guard lock(impl_->ctl_mu);
+  const int version = impl_->ctl->put_model(pump_id, plant_json, by);
+  impl_->schedule_pump_locked(pump_id);
+  impl_->work.notify_all();
+  return version;
+}
+
+AnalysisService::ReferenceReply AnalysisService::put_reference(const std::string& pump_id,
+                                                               const std::vector<std::string>& run_ids,
+                                                               const std::string& by) {
+  std::lock_guard lock(impl_->ctl_mu);
+  auto& h = *impl_->ctl;
+  if (!h.find_pump(pump_id) && !h.find_model(pump_id)) throw NotFoundError("no pump '" + pump_id + "'");
+  const auto model = h.find_model(pump_id);
+  if (!model) throw ConflictError("pump '" + pump_id + "' has no model: PUT /api/v1/pumps/{pump_id}/model first");
+  const int version = h.put_reference(pump_id, run_ids, by);
+  const auto job = h.enqueue_job(JobKey{"reference", pump_id, "", model->version, version}).first;
+  impl_->schedule_pump_locked(pump_id);
+  impl_->work.notify_all();
+  return {job, version};
+}
+
+std::int64_t AnalysisService::request_explain(const std::string& run_id, const std::string&) {
+  std::lock_guard lock(impl_->ctl_mu);
+  auto& h = *impl_->ctl;
+  const auto run = h.find_run(run_id);
+  if (!run) throw NotFoundError("no run '" + run_id + "'");
+  if (run->status != storage::RunStatus::complete || run->kind != "identification")
+    throw ConflictError("run '" + run_id + "' is " + storage::to_string(run->status) + " (" + run->kind +
+                        "): only complete identification runs are explained");
+  const auto model = h.find_model(run->pump_id);
+  if (!model) throw ConflictError("pump '" + run->pump_id + "' has no model to explain the run against");
+  const auto id = h.enqueue_job(JobKey{"explain", run->pump_id, run_id, model->version, 0}).first;
+  impl_->work.notify_all();
+  return id;
+}
+
+int AnalysisService::adopt_explained_model(std::int64_t job_id, const std::string& by) {
+  std::lock_guard lock(impl_->ctl_mu);
+  auto& h = *impl_->ctl;
+  const auto job = h.find_job(job_id);
+  if (!job) throw NotFoundError("no job " + std::to_string(job_id));
+  if (job->key.kind != "explain" || job->status != storage::JobStatus::done)
+    throw ConflictError("job " + std::to_string(job_id) + " is a " + job->key.kind + " job, " + storage::to_string(job->status) +
+                        ": only a done explain job has a model to adopt");
+  const auto art = h.find_artifact(job_id, "improved_model.json");
+  if (!art) throw ConflictError("job " + std::to_string(job_id) + " kept no improved model");
+  const int version = h.put_model(job->key.pump_id, art->data, by,
+                                  "adopted from explain job " + std::to_string(job_id) + " of run " + job->key.run_id);
+  impl_->schedule_pump_locked(job->key.pump_id);
+  impl_->work.notify_all();
+  return version;
+}
+
+void AnalysisService::cancel_job(std::int64_t job_id, const std::string& by) {
+  std::lock_guard lock(impl_->ctl_mu);
+  auto& h = *impl_->ctl;
+  const auto job = h.find_job(job_id);
+  if (!job) throw NotFoundError("no job " + std::to_string(job_id));
+  if (!h.cancel_job(job_id, "cancelled by " + (by.empty() ? std::string("an engineer") : by)))
+    throw ConflictError("job " + std::to_string(job_id) + " is " + storage::to_string(job->status) + ": only a queued job can be cancelled");
+}
+
+nlohmann::json AnalysisService::counters() const { return impl_->counters.to_json(); }
+
+}  // namespace ambdiag::server

@@ -1,0 +1,207 @@
+#include "job_runner.h"
+
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <thread>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/core/run_recording.h"
+#include "run_analysis.h"
+
+namespace ambdiag::server::detail {
+
+namespace {
+
+using nlohmann::json;
+using storage::Historian;
+
+// Thrown from the progress callback when the attempt lost its job (cancelled
+// or requeued) or the server stops: the work is abandoned, nothing stored.
+struct Abandoned {};
+
+// SQLite lets one connection write at a time; under continuous ingest a
+// job's write may wait past the busy timeout (StorageError). The result is
+// worth a few more tries before the attempt is given up (it is then queued
+// again at the next start).
+template <class F>
+auto with_retries(F&& write) {
+  for (int attempt = 1;; ++attempt) {
+    try {
+      return write();
+    } catch (const storage::StorageError&) {
+      if (attempt == 5) throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(200 * attempt));
+    }
+  }
+}
+
+double thread_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// The stored run as a recording: its run.json and its samples.
+RunRecording load_run(Historian& h, const std::string& run_id) {
+  const auto info = h.find_run(run_id);
+  if (!info) throw InputError("run '" + run_id + "' is not in the historian");
+  if (info->status != storage::RunStatus::complete)
+    throw InputError("run '" + run_id + "' is " + storage::to_string(info->status) +
+                     (info->status_reason.empty() ? "" : " (" + info->status_reason + ")"));
+  RunRecording run;
+  try {
+    run = run_from_json(json::parse(info->header_json));
+  } catch (const json::exception& e) {
+    throw InputError("run '" + run_id + "': run.json: " + e.what());
+  }
+  const std::string bytes = h.read_samples(run_id);
+  if (bytes.size() % sizeof(float) != 0) throw InputError("run '" + run_id + "': samples are not whole float32 values");
+  run.samples.resize(bytes.size() / sizeof(float));
+  std::memcpy(run.samples.data(), bytes.data(), bytes.size());
+  try {
+    run.validate();
+  } catch (const InputError& e) {
+    rethrow_with_context(e, "run '" + run_id + "'");
+  }
+  return run;
+}
+
+// A run's FRF: the one its analysis kept, else estimated now.
+FrfData run_frf(Historian& h, const std::string& run_id) {
+  storage::JobFilter f;
+  f.run_id = run_id;
+  f.kind = "analysis";
+  f.status = storage::JobStatus::done;
+  f.limit = 1;
+  for (const auto& j : h.list_jobs(f))
+    if (auto a = h.find_artifact(j.job_id, "frf.csv")) return parse_frf_csv(a->data, "frf.csv of job " + std::to_string(j.job_id));
+  return estimate_run_frf(load_run(h, run_id), nullptr);
+}
+
+PlantModel job_plant(Historian& h, const storage::Job& job) {
+  const auto m = h.find_model(job.key.pump_id, job.key.model_version);
+  if (!m) throw InputError("pump '" + job.key.pump_id + "' has no model version " + std::to_string(job.key.model_version));
+  return plant_from_text(m->plant_json, "model version " + std::to_string(m->version) + " of pump " + job.key.pump_id);
+}
+
+}  // namespace
+
+void JobCounters::finished(const std::string& kind, bool ok, double cpu_s, double wall_s) {
+  std::lock_guard l(mu_);
+  auto& k = kinds_[kind];
+  (ok ? k.done : k.failed) += 1;
+  k.cpu_s += cpu_s;
+  k.wall_s += wall_s;
+}
+
+json JobCounters::to_json() const {
+  std::lock_guard l(mu_);
+  json j = json::object();
+  for (const auto& [name, k] : kinds_)
+    j[name] = {{"done", k.done}, {"failed", k.failed}, {"cpu_s", k.cpu_s}, {"wall_s", k.wall_s}};
+  return j;
+}
+
+JobRunner::JobRunner(const AnalysisOptions& opt, std::string name, JobCounters& counters, WorkSignal& work,
+                     const std::atomic<bool>& stop)
+    : opt_(opt),
+      name_(std::move(name)),
+      counters_(counters),
+      work_(work),
+      stop_(stop),
+      h_(Historian::open(opt.db_path, Historian::Mode::write)) {}
+
+void JobRunner::run() {
+  while (!stop_) {
+    const auto seen = work_.generation();
+    bool ran = false;
+    try {
+      ran = run_one();
+    } catch (const std::exception& e) {  // the database itself failed: try again later
+      std::fprintf(stderr, "ambdiag serve: %s: %s\n", name_.c_str(), e.what());
+    }
+    if (!ran && !stop_) work_.wait_for(std::chrono::milliseconds(1000), seen);
+  }
+}
+
+bool JobRunner::run_one() {
+  const auto job = h_.claim_job(name_);
+  if (!job) return false;
+  execute(*job);
+  return true;
+}
+
+void JobRunner::execute(const storage::Job& job) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = thread_cpu_s();
+  auto last_report = wall0;
+  double last_share = 0.0;
+  const ProgressFn progress = [&](double share) {
+    if (stop_) throw Abandoned{};
+    const auto now = std::chrono::steady_clock::now();
+    if (share - last_share < 0.05 && now - last_report < std::chrono::seconds(1)) return;
+    last_share = share;
+    last_report = now;
+    if (!h_.set_job_progress(job.job_id, job.attempts, share)) throw Abandoned{};
+  };
+  const std::string what = job.key.kind + " job " + std::to_string(job.job_id) +
+                           (job.key.run_id.empty() ? " of pump " + job.key.pump_id : " of run " + job.key.run_id);
+  bool ok = false;
+  std::string summary;
+  try {
+    JobOutput out;
+    const PlantModel plant = job_plant(h_, job);
+    if (job.key.kind == "analysis") {
+      std::optional<OperatingReference> ref;
+      if (job.key.reference_version > 0) {
+        if (!job.depends_on) throw InputError("no reference job for reference version " + std::to_string(job.key.reference_version));
+        const auto art = h_.find_artifact(*job.depends_on, "reference.json");
+        if (!art) throw InputError("reference job " + std::to_string(*job.depends_on) + " kept no reference");
+        ref = operating_reference_from_json(art->data);
+      }
+      const RunRecording run = load_run(h_, job.key.run_id);
+      out = analyse_run(plant, run, ref ? &*ref : nullptr, opt_.alpha, progress);
+      const auto& d = out.result["detection"];
+      summary = d.is_null() ? "no reference" : (d["detected"].get<bool>() ? "CHANGE DETECTED" : "no change");
+      if (!out.result["diagnosis"].is_null() && !out.result["diagnosis"]["faults"].empty())
+        summary += ", first " + out.result["diagnosis"]["faults"][0]["fault"].get<std::string>();
+    } else if (job.key.kind == "reference") {
+      const auto ref = h_.find_reference(job.key.pump_id, job.key.reference_version);
+      if (!ref) throw InputError("pump '" + job.key.pump_id + "' has no reference version " + std::to_string(job.key.reference_version));
+      std::vector<FrfData> frfs;
+      for (size_t i = 0; i < ref->run_ids.size(); ++i) {
+        frfs.push_back(run_frf(h_, ref->run_ids[i]));
+        progress(0.8 * static_cast<double>(i + 1) / static_cast<double>(ref->run_ids.size()));
+      }
+      out = learn_reference(plant, frfs, ref->run_ids, [&](double s) { progress(0.8 + 0.2 * s); });
+      summary = std::to_string(frfs.size()) + " runs";
+    } else if (job.key.kind == "explain") {
+      out = explain_run(plant, run_frf(h_, job.key.run_id), progress);
+      summary = std::to_string(out.result.value("explanations", json::array()).size()) + " explanations";
+    } else {
+      throw InputError("unknown job kind '" + job.key.kind + "'");
+    }
+    const double cpu = thread_cpu_s() - cpu0;
+    out.result["cpu_s"] = cpu;
+    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, out.result.dump(), out.artifacts); });
+    if (!ok) summary = "result refused: the attempt no longer holds the job";
+  } catch (const Abandoned&) {
+    summary = "abandoned";
+  } catch (const std::exception& e) {
+    summary = std::string("failed: ") + e.what();
+    try {
+      with_retries([&] { return h_.fail_job(job.job_id, job.attempts, e.what()); });
+    } catch (const std::exception& e2) {
+      std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
+    }
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double cpu = thread_cpu_s() - cpu0;
+  counters_.finished(job.key.kind, ok, cpu, wall);
+  if (opt_.verbose)
+    std::fprintf(stderr, "ambdiag serve: %s (attempt %d): %s, %.2f s, %.2f CPU-s\n", what.c_str(), job.attempts,
+                 summary.c_str(), wall, cpu);
+}
+
+}  // namespace ambdiag::server::detail

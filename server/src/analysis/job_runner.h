@@ -1,0 +1,79 @@
+// One worker thread of the analysis service: claims jobs from the
+// historian's queue and runs them (run_analysis.h), storing each result
+// with its files in one transaction, fenced by the attempt number.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/server/analysis_service.h"
+#include "ambdiag/storage/historian.h"
+
+namespace ambdiag::server::detail {
+
+// Wakes idle workers when work was queued (they also poll every second:
+// another process may have queued it).
+class WorkSignal {
+ public:
+  void notify() {
+    { std::lock_guard l(mu_); ++gen_; }
+    cv_.notify_one();
+  }
+  void notify_all() {
+    { std::lock_guard l(mu_); ++gen_; }
+    cv_.notify_all();
+  }
+  void wait_for(std::chrono::milliseconds d, std::uint64_t seen) {
+    std::unique_lock l(mu_);
+    cv_.wait_for(l, d, [&] { return gen_ != seen; });
+  }
+  std::uint64_t generation() {
+    std::lock_guard l(mu_);
+    return gen_;
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::uint64_t gen_ = 0;
+};
+
+class JobCounters {
+ public:
+  void finished(const std::string& kind, bool ok, double cpu_s, double wall_s);
+  nlohmann::json to_json() const;
+
+ private:
+  struct Kind {
+    std::int64_t done = 0, failed = 0;
+    double cpu_s = 0, wall_s = 0;
+  };
+  mutable std::mutex mu_;
+  std::map<std::string, Kind> kinds_;
+};
+
+class JobRunner {
+ public:
+  JobRunner(const AnalysisOptions& opt, std::string name, JobCounters& counters, WorkSignal& work,
+            const std::atomic<bool>& stop);
+  // Until stop: claim, run, store; wait for work when the queue is empty.
+  void run();
+  // Claims and runs one job if there is one; false when the queue was empty.
+  bool run_one();
+
+ private:
+  void execute(const storage::Job& job);
+  const AnalysisOptions& opt_;
+  std::string name_;
+  JobCounters& counters_;
+  WorkSignal& work_;
+  const std::atomic<bool>& stop_;
+  storage::Historian h_;
+};
+
+}  // namespace ambdiag::server::detail

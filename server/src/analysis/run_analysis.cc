@@ -1,0 +1,172 @@
+#include "run_analysis.h"
+
+#include <cmath>
+
+#include "ambdiag/algorithms/diagnosis_report.h"
+#include "ambdiag/algorithms/explain.h"
+#include "ambdiag/algorithms/fit_report.h"
+#include "ambdiag/algorithms/frf_compare.h"
+#include "ambdiag/algorithms/frf_estimation.h"
+#include "ambdiag/algorithms/missing_physics.h"
+#include "ambdiag/algorithms/modal_analysis.h"
+#include "ambdiag/algorithms/mode_labels.h"
+#include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/core/error.h"
+
+namespace ambdiag::server::detail {
+
+namespace {
+
+using nlohmann::json;
+
+void report(const ProgressFn& p, double share) {
+  if (p) p(std::clamp(share, 0.0, 1.0));
+}
+
+storage::JobArtifact svg(std::string name, std::string text) {
+  return {std::move(name), "image/svg+xml", std::move(text)};
+}
+
+}  // namespace
+
+PlantModel plant_from_text(const std::string& plant_json, const std::string& source) {
+  json doc;
+  try {
+    doc = json::parse(plant_json);
+  } catch (const json::exception& e) {
+    throw InputError(source + ": not JSON: " + e.what());
+  }
+  try {
+    // explain's improved models carry "acquisition": {"delay_s"}, which the
+    // plant reader ignores; the plant itself is what the analysis uses.
+    return plant_from_json(doc);
+  } catch (const InputError& e) {
+    rethrow_with_context(e, source);
+  }
+}
+
+FrfData estimate_run_frf(const RunRecording& run, json* summary) {
+  FrfEstimate est;
+  try {
+    est = estimate_frf(run);
+  } catch (const InputError& e) {
+    rethrow_with_context(e, "run " + run.run_id);
+  }
+  if (summary)
+    *summary = {{"method", est.method},
+                {"lines", est.frf.freq_hz.size()},
+                {"lines_dropped", est.lines_dropped},
+                {"entries", est.frf.entries.size()},
+                {"averages", est.averages},
+                {"sigma_dof", est.sigma_dof},
+                {"f_min_hz", est.frf.freq_hz.empty() ? 0.0 : est.frf.freq_hz.front()},
+                {"f_max_hz", est.frf.freq_hz.empty() ? 0.0 : est.frf.freq_hz.back()},
+                {"warnings", est.warnings}};
+  return std::move(est.frf);
+}
+
+JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const OperatingReference* reference,
+                      double alpha, const ProgressFn& progress) {
+  JobOutput out;
+  json& r = out.result;
+  const double speed_rpm = run.speed_rpm > 0 ? run.speed_rpm : plant.speed_rpm;
+  r["speed_rpm"] = speed_rpm;
+  try {
+    run.validate_against(plant);
+  } catch (const InputError& e) {
+    rethrow_with_context(e, "run " + run.run_id + " against the pump's model");
+  }
+  report(progress, 0.02);
+
+  json frf_summary;
+  FrfData frf = estimate_run_frf(run, &frf_summary);
+  if (!frf.speed_rpm) frf.speed_rpm = speed_rpm;
+  r["frf"] = frf_summary;
+  out.artifacts.push_back({"frf.csv", "text/csv", format_frf_csv(frf)});
+  report(progress, 0.3);
+
+  // Modal fit, labelled against the model at the run's own speed.
+  RationalFitResult fit;
+  try {
+    fit = fit_rational(frf, RationalFitOptions{});
+  } catch (const InputError& e) {
+    rethrow_with_context(e, "fit of run " + run.run_id);
+  }
+  std::vector<ModeDescription> described;
+  for (const auto& m : fit.modes) described.push_back(describe_mode(m, fit, frf, &plant));
+  const std::vector<Mode> model_modes = modal_analysis(plant, speed_rpm).modes;
+  const ModePairing pairing = pair_with_model(described, model_modes, frf.freq_hz.front(), frf.freq_hz.back());
+  const json fit_json = fit_to_json(fit, pairing, &model_modes, false);
+  r["modes"] = fit_json["modes"];
+  r["unmatched_model_modes"] = fit_json["unmatched_model_modes"];
+  r["unmatched_identified_modes"] = fit_json["unmatched_identified_modes"];
+  r["fit"] = fit_json["fit"];
+  r["fit"]["order"] = fit_json["order"];
+  r["fit"]["pole_pairs"] = fit_json["pole_pairs"];
+  out.artifacts.push_back(svg("stabilization.svg", stabilization_svg(fit, frf)));
+  report(progress, 0.75);
+
+  const FrfData model = model_frf_like(plant, frf);
+  const FrfComparison cmp = compare_frf(model, frf);
+  r["nrmse"] = cmp.nrmse;
+  char title[160];
+  std::snprintf(title, sizeof title, "%s: measured (solid) vs model (dashed) at %.0f rpm, NRMSE %.3f", run.run_id.c_str(),
+                speed_rpm, cmp.nrmse);
+  out.artifacts.push_back(svg("bode.svg", bode_svg(frf, model, title)));
+  report(progress, 0.8);
+
+  r["detection"] = nullptr;
+  r["diagnosis"] = nullptr;
+  if (reference) {
+    DiagnosisOptions opt;
+    opt.alpha = alpha;
+    opt.progress = [&](const std::string&, int done, int total) {
+      if (total > 0) report(progress, 0.8 + 0.19 * done / total);
+    };
+    const DiagnosisResult d = diagnose(plant, *reference, frf, opt);
+    r["detection"] = {{"detected", d.detected},
+                      {"statistic", d.statistic},
+                      {"threshold", d.threshold},
+                      {"false_alarm_rate", d.alpha},
+                      {"ratio", d.threshold > 0 ? d.statistic / d.threshold : 0.0},
+                      {"dof", d.dof},
+                      {"p_value", d.p_value}};
+    if (d.detected) {
+      r["diagnosis"] = diagnosis_to_json(d, plant);
+      out.artifacts.push_back(svg("diagnosis.svg", diagnosis_svg(d, frf)));
+    }
+  }
+  report(progress, 1.0);
+  return out;
+}
+
+JobOutput learn_reference(const PlantModel& plant, const std::vector<FrfData>& frfs, const std::vector<std::string>& run_ids,
+                          const ProgressFn& progress) {
+  JobOutput out;
+  report(progress, 0.1);
+  const OperatingReference ref = learn_operating_reference(plant, frfs);
+  report(progress, 0.9);
+  json speeds = json::array();
+  for (const auto& f : frfs) speeds.push_back(f.speed_rpm ? json(*f.speed_rpm) : json(nullptr));
+  out.result = {{"runs", run_ids}, {"speeds_rpm", speeds}};
+  out.artifacts.push_back({"reference.json", "application/json", operating_reference_to_json(ref)});
+  report(progress, 1.0);
+  return out;
+}
+
+JobOutput explain_run(const PlantModel& plant, const FrfData& frf, const ProgressFn& progress) {
+  JobOutput out;
+  ExplainOptions opt;
+  int stage = 0;
+  // explain reports stages, not shares: each of its up to max_steps
+  // selection steps moves the bar by an equal part.
+  opt.progress = [&](const std::string&) { report(progress, std::min(0.95, ++stage / (opt.max_steps + 4.0))); };
+  const ExplainResult r = explain(plant, frf, opt);
+  out.result = explain_to_json(r);
+  out.artifacts.push_back({"improved_model.json", "application/json", variant_to_json(r.improved).dump(2) + "\n"});
+  out.artifacts.push_back(svg("explain.svg", explain_svg(r, frf)));
+  report(progress, 1.0);
+  return out;
+}
+
+}  // namespace ambdiag::server::detail

@@ -1,0 +1,225 @@
+#include "rest_routes.h"
+
+#include <limits>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/server/analysis_service.h"
+#include "analysis/views.h"
+#include "rest_json.h"
+
+namespace ambdiag::server::detail {
+
+namespace {
+
+using nlohmann::json;
+
+std::string run_url(const std::string& run_id) { return "/api/v1/runs/" + url_encode_segment(run_id); }
+
+// A positive integer parameter or path segment; InputError naming it.
+std::int64_t positive_integer(const std::string& text, const std::string& what) {
+  if (text.empty() || text.size() > 15 || text.find_first_not_of("0123456789") != std::string::npos || std::stoll(text) < 1)
+    throw InputError(what + ": '" + text + "' is not a positive integer");
+  return std::stoll(text);
+}
+
+json parse_body(const httplib::Request& req, const std::string& what) {
+  try {
+    return json::parse(req.body);
+  } catch (const json::exception& e) {
+    throw InputError(what + ": the body is not JSON: " + e.what());
+  }
+}
+
+void send_artifact(httplib::Response& res, const storage::JobArtifact& a) {
+  res.status = 200;
+  res.set_content(a.data, a.content_type);
+}
+
+}  // namespace
+
+void send_json(httplib::Response& res, int status, const json& body) {
+  res.status = status;
+  res.set_content(dump(body), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message) {
+  send_json(res, status, {{"error", message}});
+}
+
+std::optional<Caller> authorize(ReaderPool& pool, const httplib::Request& req, storage::Role needed, bool anonymous_read,
+                                httplib::Response& res) {
+  const std::string header = req.get_header_value("Authorization");
+  std::optional<Caller> caller;
+  if (header.empty()) {
+    if (anonymous_read) caller = Caller{};
+  } else {
+    constexpr std::string_view kBearer = "Bearer ";
+    if (header.size() <= kBearer.size() || header.compare(0, kBearer.size(), kBearer) != 0) {
+      res.set_header("WWW-Authenticate", "Bearer");
+      send_error(res, 401, "Authorization: expected 'Bearer TOKEN'");
+      return std::nullopt;
+    }
+    auto h = pool.acquire();
+    if (const auto t = h->find_token(header.substr(kBearer.size()))) caller = Caller{t->name, t->role};
+    if (!caller) {
+      res.set_header("WWW-Authenticate", "Bearer error=\"invalid_token\"");
+      send_error(res, 401, "unknown or revoked token");
+      return std::nullopt;
+    }
+  }
+  if (!caller) {
+    res.set_header("WWW-Authenticate", "Bearer");
+    send_error(res, 401, "this request needs a token (Authorization: Bearer TOKEN; ambdiag token add)");
+    return std::nullopt;
+  }
+  if (static_cast<int>(caller->role) < static_cast<int>(needed)) {
+    send_error(res, 403, "role '" + storage::to_string(caller->role) + "' of '" + caller->name + "' is too low: " + req.method +
+                             " " + req.path + " needs '" + storage::to_string(needed) + "'");
+    return std::nullopt;
+  }
+  return caller;
+}
+
+void get_pump(RouteContext& c, const std::string& pump_id) {
+  auto h = c.pool.acquire();
+  const auto j = pump_view(*h, pump_id, c.opt.proposed_reference_runs);
+  if (!j) return send_error(c.res, 404, "no pump '" + pump_id + "'");
+  send_json(c.res, 200, *j);
+}
+
+void get_model(RouteContext& c, const std::string& pump_id) {
+  std::optional<int> version;
+  if (c.req.has_param("version"))
+    version = static_cast<int>(std::min<std::int64_t>(positive_integer(c.req.get_param_value("version"), "version"),
+                                                      std::numeric_limits<int>::max()));
+  auto h = c.pool.acquire();
+  const auto m = h->find_model(pump_id, version);
+  if (!m) {
+    if (!h->find_pump(pump_id)) return send_error(c.res, 404, "no pump '" + pump_id + "'");
+    return send_error(c.res, 404, version ? "pump '" + pump_id + "' has no model version " + std::to_string(*version)
+                                          : "pump '" + pump_id + "' has no model");
+  }
+  c.res.status = 200;
+  c.res.set_header("X-Model-Version", std::to_string(m->version));
+  c.res.set_content(m->plant_json, "application/json");
+}
+
+void put_model(RouteContext& c, const std::string& pump_id) {
+  if (pump_id.size() > 128) throw InputError("pump_id: longer than 128 bytes");
+  const int version = c.opt.analysis->put_model(pump_id, c.req.body, c.caller.name);
+  send_json(c.res, 200, {{"pump_id", pump_id}, {"model_version", version}});
+}
+
+void get_models(RouteContext& c, const std::string& pump_id) {
+  auto h = c.pool.acquire();
+  const auto list = h->list_models(pump_id);
+  if (list.empty() && !h->find_pump(pump_id)) return send_error(c.res, 404, "no pump '" + pump_id + "'");
+  json out = json::array();
+  for (const auto& m : list)
+    out.push_back({{"model_version", m.version}, {"created_at", m.created_at}, {"created_by", m.created_by}, {"comment", m.comment}});
+  send_json(c.res, 200, {{"pump_id", pump_id}, {"models", out}});
+}
+
+void get_reference(RouteContext& c, const std::string& pump_id) {
+  auto h = c.pool.acquire();
+  const auto pump = pump_view(*h, pump_id, c.opt.proposed_reference_runs);
+  if (!pump) return send_error(c.res, 404, "no pump '" + pump_id + "'");
+  if (!pump->contains("reference")) return send_error(c.res, 404, "pump '" + pump_id + "' has no reference and too few runs to propose one");
+  json j = (*pump)["reference"];
+  j["pump_id"] = pump_id;
+  send_json(c.res, 200, j);
+}
+
+void put_reference(RouteContext& c, const std::string& pump_id) {
+  const json body = parse_body(c.req, "reference");
+  if (!body.is_object() || !body.contains("runs") || !body["runs"].is_array())
+    throw InputError("reference: the body must be {\"runs\": [run_id, ...]}");
+  std::vector<std::string> runs;
+  for (const auto& r : body["runs"]) {
+    if (!r.is_string()) throw InputError("reference: runs: every entry must be a run_id string");
+    runs.push_back(r.get<std::string>());
+  }
+  const auto reply = c.opt.analysis->put_reference(pump_id, runs, c.caller.name);
+  send_json(c.res, 202, {{"pump_id", pump_id}, {"job_id", reply.job_id}, {"reference_version", reply.reference_version}});
+}
+
+void get_analysis(RouteContext& c, const std::string& run_id) {
+  auto h = c.pool.acquire();
+  const auto j = analysis_view(*h, run_id, run_url(run_id));
+  if (!j) return send_error(c.res, 404, "no run '" + run_id + "'");
+  send_json(c.res, 200, *j);
+}
+
+void get_run_file(RouteContext& c, const std::string& run_id, const std::string& name) {
+  auto h = c.pool.acquire();
+  auto snap = h->snapshot();
+  const auto run = h->find_run(run_id);
+  if (!run) return send_error(c.res, 404, "no run '" + run_id + "'");
+  const auto job = current_analysis_job(*h, *run);
+  if (!job || job->status != storage::JobStatus::done)
+    return send_error(c.res, 404, "run '" + run_id + "' has no finished analysis yet (GET " + run_url(run_id) + "/analysis)");
+  const auto a = h->find_artifact(job->job_id, name);
+  if (!a) return send_error(c.res, 404, "the analysis of run '" + run_id + "' has no " + name);
+  send_artifact(c.res, *a);
+}
+
+void post_explain(RouteContext& c, const std::string& run_id) {
+  const auto id = c.opt.analysis->request_explain(run_id, c.caller.name);
+  send_json(c.res, 202, {{"job_id", id}, {"run_id", run_id}});
+}
+
+void get_jobs(RouteContext& c) {
+  storage::JobFilter f;
+  if (c.req.has_param("pump_id")) f.pump_id = c.req.get_param_value("pump_id");
+  if (c.req.has_param("run_id")) f.run_id = c.req.get_param_value("run_id");
+  if (c.req.has_param("kind")) f.kind = c.req.get_param_value("kind");
+  if (c.req.has_param("status")) {
+    f.status = storage::job_status_from(c.req.get_param_value("status"));
+    if (!f.status)
+      throw InputError("status: '" + c.req.get_param_value("status") + "' is not queued, running, done, failed or cancelled");
+  }
+  if (c.req.has_param("limit"))
+    f.limit = static_cast<int>(std::min<std::int64_t>(positive_integer(c.req.get_param_value("limit"), "limit"), 10000));
+  auto h = c.pool.acquire();
+  json list = json::array();
+  for (const auto& j : h->list_jobs(f)) list.push_back(job_json(j, false));
+  send_json(c.res, 200, {{"jobs", list}});
+}
+
+void get_job(RouteContext& c, const std::string& job_id) {
+  const auto id = positive_integer(job_id, "job_id");
+  auto h = c.pool.acquire();
+  const auto j = h->find_job(id);
+  if (!j) return send_error(c.res, 404, "no job " + job_id);
+  json out = job_json(*j, true);
+  json files = json::object();
+  for (const auto& name : h->list_artifacts(id)) files[name] = "/api/v1/jobs/" + job_id + "/files/" + name;
+  if (!files.empty()) out["files"] = files;
+  send_json(c.res, 200, out);
+}
+
+void get_job_file(RouteContext& c, const std::string& job_id, const std::string& name) {
+  const auto id = positive_integer(job_id, "job_id");
+  auto h = c.pool.acquire();
+  if (!h->find_job(id)) return send_error(c.res, 404, "no job " + job_id);
+  const auto a = h->find_artifact(id, name);
+  if (!a) return send_error(c.res, 404, "job " + job_id + " has no file '" + name + "'");
+  send_artifact(c.res, *a);
+}
+
+void post_adopt(RouteContext& c, const std::string& job_id) {
+  const auto id = positive_integer(job_id, "job_id");
+  const int version = c.opt.analysis->adopt_explained_model(id, c.caller.name);
+  auto h = c.pool.acquire();
+  const auto j = h->find_job(id);
+  send_json(c.res, 200, {{"pump_id", j ? j->key.pump_id : ""}, {"model_version", version}, {"adopted_from_job", id}});
+}
+
+void post_cancel(RouteContext& c, const std::string& job_id) {
+  const auto id = positive_integer(job_id, "job_id");
+  c.opt.analysis->cancel_job(id, c.caller.name);
+  auto h = c.pool.acquire();
+  send_json(c.res, 200, job_json(*h->find_job(id), false));
+}
+
+}  // namespace ambdiag::server::detail
