@@ -182,7 +182,9 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
 
   // The nuisance fit and the residual test.
   progress("nuisance fit", 0, 1);
-  const operating_detail::NuisanceFit nf = operating_detail::fit_nuisance(plant, links, run, ref.options.log_factor_bound);
+  Eigen::VectorXd theta_mean = Eigen::VectorXd::Zero(k);
+  for (Eigen::Index i = 0; i < k; ++i) theta_mean[i] = ref.log_factor_mean[static_cast<size_t>(i)];
+  const operating_detail::NuisanceFit nf = operating_detail::fit_nuisance(plant, links, run, ref.options.log_factor_bound, theta_mean);
   for (size_t e = 0; e < a.entries.size(); ++e)
     for (size_t l = 0; l < lines; ++l) a.entries[e].mean.push_back(nf.at_theta[e][l] + run.offset[e][l]);
   a.fitted_dof = static_cast<int>(k);
@@ -195,6 +197,9 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
   ot.used = true;
   ot.speed_rpm = a.speed_rpm;
   ot.alpha_each = alpha_each;
+  ot.residual_statistic = res.statistic;
+  ot.residual_threshold = res.threshold;
+  ot.residual_dof = res.dof;
   ot.residual_p_value = res.p_value;
   ot.residual_detected = res.detected;
 
@@ -222,10 +227,10 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
                       "misalignment: needs monitoring runs (2x bearing forces), none given"};
   if (res.detected && !ot.residual_detected) {
     // Only the drift fired: the symptoms are those of the change from the
-    // reference state (theta = 0), which the fit has absorbed.
+    // reference state (theta_mean), which the fit has absorbed.
     Aligned a0 = a;
     for (size_t e = 0; e < a0.entries.size(); ++e)
-      for (size_t l = 0; l < lines; ++l) a0.entries[e].mean[l] = nf.at_zero[e][l] + run.offset[e][l];
+      for (size_t l = 0; l < lines; ++l) a0.entries[e].mean[l] = nf.at_start[e][l] + run.offset[e][l];
     DiagnosisResult tmp;
     diagnosis_detail::detect(a0, each, tmp);
     res.symptoms = tmp.symptoms;
@@ -235,26 +240,34 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
   Values healthy;
   for (const auto& e : a.entries) healthy.push_back(e.mean);
   res.chi2_before = fit_chi2(plain, healthy);
-  res.model_before = diagnosis_detail::as_frf(nf.at_zero, a);
-  res.nrmse_before = diagnosis_detail::nrmse_of(nf.at_zero, a);
+  res.model_before = diagnosis_detail::as_frf(nf.at_start, a);
+  res.nrmse_before = diagnosis_detail::nrmse_of(nf.at_start, a);
   res.chi2_after = res.chi2_before;
   res.nrmse_after = res.nrmse_before;
   res.model_after = res.model_before;
   res.evaluations = nf.evaluations;
   if (!res.detected) res.explained = true;
-  if (!res.detected || options.detect_only) return res;
+  // The deciding test's figures in statistic / threshold / dof (the
+  // residual test's stay in `operating`).
+  auto deciding = [&]() {
+    if (k > 0 && ot.drift_p_value < ot.residual_p_value) {
+      res.statistic = ot.drift_statistic;
+      res.threshold = ot.drift_threshold;
+      res.dof = ot.drift_dof;
+    }
+    return res;
+  };
+  if (!res.detected || options.detect_only) return deciding();
 
-  // Diagnosis. Every fault hypothesis is evaluated at theta = 0 and the
-  // nuisance profiled out, linearised (Jacobian at 0 from the fit above):
-  // min over delta of |r + J (theta_mean + delta)|^2 + delta^T P delta, P =
+  // Diagnosis. Every fault hypothesis is evaluated at theta_mean and the
+  // nuisance profiled out, linearised (Jacobian there, from the fit above):
+  // min over delta of |r + J delta|^2 + delta^T P delta, P =
   // Sigma^-1 / 2 (the prior of the normal spread in complex-chi2 units), so
   // the drift may take its normal share of a change and no more; the prior
   // term is appended as K extra rows so that every fit sees it.
   const size_t n_ent = a.entries.size();
   Eigen::MatrixXd jtj = Eigen::MatrixXd::Zero(k, k), p_prior = Eigen::MatrixXd::Zero(k, k), u_prior = Eigen::MatrixXd::Zero(k, k);
-  Eigen::VectorXd theta_mean = Eigen::VectorXd::Zero(k);
   if (k > 0) {
-    for (Eigen::Index i = 0; i < k; ++i) theta_mean[i] = ref.log_factor_mean[static_cast<size_t>(i)];
     for (Eigen::Index i = 0; i < k; ++i)
       for (Eigen::Index j = 0; j < k; ++j) {
         double s = 0.0;
@@ -273,23 +286,22 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
     Eigen::VectorXd g = Eigen::VectorXd::Zero(k);
     for (size_t e = 0; e < n_ent; ++e)
       for (size_t l = 0; l < lines; ++l) {
-        std::complex<double> r = v[e][l] + run.offset[e][l] - run.h[e][l];
-        for (Eigen::Index i = 0; i < k; ++i) r += nf.jacobian[static_cast<size_t>(i)][e][l] * theta_mean[i];
+        const std::complex<double> r = v[e][l] + run.offset[e][l] - run.h[e][l];
         const double w2 = run.weight[e][l] * run.weight[e][l];
         for (Eigen::Index i = 0; i < k; ++i) g[i] += w2 * (std::conj(nf.jacobian[static_cast<size_t>(i)][e][l]) * r).real();
       }
     const Eigen::VectorXd delta = -solve_m.ldlt().solve(g);
-    const Eigen::VectorXd theta = theta_mean + delta;
     for (size_t e = 0; e < n_ent; ++e)
       for (size_t l = 0; l < lines; ++l)
-        for (Eigen::Index i = 0; i < k; ++i) v[e][l] += nf.jacobian[static_cast<size_t>(i)][e][l] * theta[i];
+        for (Eigen::Index i = 0; i < k; ++i) v[e][l] += nf.jacobian[static_cast<size_t>(i)][e][l] * delta[i];
     const Eigen::VectorXd z = u_prior * delta;
     std::vector<std::complex<double>> prior_row;
     for (Eigen::Index i = 0; i < k; ++i) prior_row.emplace_back(z[i], 0.0);
     v.push_back(std::move(prior_row));
   };
   progress("nominal model", 0, 1);
-  diagnosis_detail::ModelGrid grid(plant, a, profile);
+  const PlantModel reference_state = k > 0 ? operating_detail::with_nuisance(plant, links, theta_mean) : plant;
+  diagnosis_detail::ModelGrid grid(reference_state, a, profile);
   FrfFitTarget target{a.freq_hz, run.h, run.weight, run.offset};
   if (k > 0) {
     target.measured.emplace_back(static_cast<size_t>(k), std::complex<double>(0.0, 0.0));
@@ -321,7 +333,7 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
   diagnosis_detail::rank_faults(std::move(cands), hyps, screened, grid, a, options, res);
   res.evaluations = nf.evaluations + grid.evaluations() + joint_evaluations;
   progress("done", 1, 1);
-  return res;
+  return deciding();
 }
 
 }  // namespace ambdiag

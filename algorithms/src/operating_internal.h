@@ -36,14 +36,15 @@ struct NuisanceFit {
   Eigen::MatrixXd cov;          // of theta (noise)
   double chi2 = 0.0;            // sum |w (M(theta) + b - H)|^2
   Values at_theta;              // M(s, theta)
-  Values at_zero;               // M(s, 0)
-  std::vector<Values> jacobian; // dM/dtheta_k at 0, FRF units, [k][entry][line]
+  Values at_start;              // M(s, start)
+  std::vector<Values> jacobian; // dM/dtheta_k at start, FRF units, [k][entry][line]
   int evaluations = 0;
 };
 
 // Levenberg-Marquardt with Broyden updates from a difference Jacobian at
-// theta = 0 (1 + K + iterations model FRFs). With no links, theta is empty
-// and chi2 that of M(s, 0).
-NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound);
+// `start` (1 + K + iterations model FRFs). With no links, theta is empty
+// and chi2 that of M(s, 0). An empty run.offset is zero.
+NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound,
+                         const Eigen::VectorXd& start);
 
 }  // namespace ambdiag::operating_detail

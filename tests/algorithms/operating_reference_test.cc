@@ -87,6 +87,7 @@ TEST(OperatingReference, FalseAlarmRateMatchesAlphaUnderSpeedAndSealDrift) {
       residual += r.operating.residual_detected;
       drift += r.operating.drift_detected;
       EXPECT_EQ(r.detected, r.p_value < opt.alpha);
+      EXPECT_EQ(r.detected, r.statistic > r.threshold);
       ++runs;
     }
   }
@@ -120,6 +121,9 @@ TEST(OperatingReference, ThreePercentSealDriftIsNotDetected) {
   const DiagnosisResult r = diagnose(plant, learn_operating_reference(plant, refs), run, opt);
   EXPECT_FALSE(r.detected) << "residual p " << r.operating.residual_p_value << ", drift " << r.operating.drift_statistic;
   EXPECT_TRUE(r.faults.empty());
+  std::printf("3 %% drift: old path T/threshold %.2f (first fault %s); new path p %.3f (residual p %.3f, drift D %.2f)\n",
+              old.statistic / old.threshold, old.faults.empty() ? "-" : old.faults.front().name.c_str(), r.p_value,
+              r.operating.residual_p_value, r.operating.drift_statistic);
   ASSERT_EQ(r.operating.nuisance.size(), 2u);
   for (const auto& nu : r.operating.nuisance) EXPECT_NEAR(nu.log_factor, std::log(1.03), 0.005) << nu.link;
 }
@@ -139,6 +143,8 @@ TEST(OperatingReference, RunThreePercentFasterIsAcceptedAndNotDetected) {
   const DiagnosisResult r = diagnose(plant, learn_operating_reference(plant, refs), run, opt);
   EXPECT_FALSE(r.detected) << "residual p " << r.operating.residual_p_value << ", drift p " << r.operating.drift_p_value;
   EXPECT_DOUBLE_EQ(r.operating.speed_rpm, 2950.0 * 1.03);
+  std::printf("3 %% faster: p %.3f (residual T/dof %.4f, drift D %.2f)\n", r.p_value,
+              r.operating.residual_statistic / r.operating.residual_dof, r.operating.drift_statistic);
 }
 
 // The fault: balance piston clearance 1.3 x nominal, at 2 % above
@@ -165,7 +171,7 @@ TEST(OperatingReference, BalancePistonWearAtAnotherSpeedWithSealDriftIsDiagnosed
   EXPECT_NEAR(f.value, 1.3, 0.05);
   EXPECT_TRUE(r.explained);
   std::printf("balance piston: drift D %.1f (threshold %.1f), residual T/thr %.3f, clearance %.4f [%.4f, %.4f], evaluations %d\n",
-              r.operating.drift_statistic, r.operating.drift_threshold, r.statistic / r.threshold, f.value, f.ci_lo, f.ci_hi,
+              r.operating.drift_statistic, r.operating.drift_threshold, r.operating.residual_statistic / r.operating.residual_threshold, f.value, f.ci_lo, f.ci_hi,
               r.evaluations);
   for (size_t i = 0; i < 3 && i < r.faults.size(); ++i)
     std::printf("  %s %s %.4f chi2 %.1f\n", r.faults[i].name.c_str(), r.faults[i].location.c_str(), r.faults[i].value, r.faults[i].chi2);
@@ -190,6 +196,11 @@ TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
     EXPECT_EQ(r.faults.front().name, c.first) << c.dir;
     EXPECT_NEAR(r.faults.front().value, c.value, c.tolerance) << c.dir;
     EXPECT_TRUE(r.explained) << c.dir;
+    std::printf("%s: residual T/threshold %.1f, drift D %.1f (threshold %.1f); %s %s %.4f +- %.4f, chi2 %.0f -> %.0f, nrmse %.4f -> %.4f, "
+                "%d model FRFs\n",
+                c.dir, r.operating.residual_statistic / r.operating.residual_threshold, r.operating.drift_statistic,
+                r.operating.drift_threshold, r.faults.front().name.c_str(), r.faults.front().location.c_str(), r.faults.front().value,
+                r.faults.front().sd, r.chi2_before, r.chi2_after, r.nrmse_before, r.nrmse_after, r.evaluations);
     if (std::string(c.first) == "rotor_crack") {
       ASSERT_EQ(r.faults.front().hypothesis.elements.size(), 1u);
       EXPECT_LE(std::abs(r.faults.front().hypothesis.elements[0] - 8), 1);
@@ -200,6 +211,8 @@ TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
     const DiagnosisResult r =
         diagnose(plant, ref, read_frf_csv(data_file("reference_pump/frf_ref_" + std::to_string(i) + ".csv").string()));
     EXPECT_FALSE(r.detected) << "frf_ref_" << i << " p " << r.p_value;
+    std::printf("frf_ref_%d: p %.3f (residual T/dof %.4f, drift D %.2f)\n", i, r.p_value,
+                r.operating.residual_statistic / r.operating.residual_dof, r.operating.drift_statistic);
   }
 }
 
@@ -226,7 +239,7 @@ TEST(OperatingReference, RunOnAnotherGridIsInterpolatedOrRefused) {
   DiagnosisOptions opt;
   opt.alpha = 1e-3;
   const DiagnosisResult r = diagnose(plant, ref, run, opt);
-  EXPECT_FALSE(r.detected) << "p " << r.p_value << " T/dof " << r.statistic / r.dof;
+  EXPECT_FALSE(r.detected) << "p " << r.p_value << " T/dof " << r.operating.residual_statistic / r.operating.residual_dof;
   FrfData outside = run;
   outside.freq_hz.back() = 1200.0;
   try {

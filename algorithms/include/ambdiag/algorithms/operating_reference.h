@@ -102,9 +102,9 @@ OperatingReference operating_reference_from_json(const std::string& text);
 // Detection at the measured run's speed (FrfData::speed_rpm, else the
 // plant's) and, when detected and !options.detect_only, the ranked fault
 // diagnosis with the faults evaluated at that speed. `statistic`,
-// `threshold`, `dof` are the residual test's; `p_value` = 1 - (1 -
-// min(p_residual, p_drift))^2, so detected == (p_value < alpha); the drift
-// test and the nuisance estimates are in `operating`. The measured grid may
+// `threshold`, `dof` are those of the test with the smaller p-value;
+// `p_value` = 1 - (1 - min(p_residual, p_drift))^2, so detected == (p_value
+// < alpha); both tests and the nuisance estimates are in `operating`. The measured grid may
 // differ from the references' within their range (b and its variance
 // linearly interpolated). Throws InputError when the measured run shares no
 // entry with the reference, lies outside its frequency range, the plant's
