@@ -121,9 +121,10 @@ TEST(OperatingReference, ThreePercentSealDriftIsNotDetected) {
   const DiagnosisResult r = diagnose(plant, learn_operating_reference(plant, refs), run, opt);
   EXPECT_FALSE(r.detected) << "residual p " << r.operating.residual_p_value << ", drift " << r.operating.drift_statistic;
   EXPECT_TRUE(r.faults.empty());
-  std::printf("3 %% drift: old path T/threshold %.2f (first fault %s); new path p %.3f (residual p %.3f, drift D %.2f)\n",
-              old.statistic / old.threshold, old.faults.empty() ? "-" : old.faults.front().name.c_str(), r.p_value,
-              r.operating.residual_p_value, r.operating.drift_statistic);
+  std::printf("3 %% drift: old path T/threshold %.2f (first fault %s %.4f); new path p %.3f (residual p %.3f, drift D %.2f, %+.3f %% %+.3f %%)\n",
+              old.statistic / old.threshold, old.faults.empty() ? "-" : old.faults.front().name.c_str(),
+              old.faults.empty() ? 0.0 : old.faults.front().value, r.p_value, r.operating.residual_p_value, r.operating.drift_statistic,
+              100.0 * std::expm1(r.operating.nuisance[0].log_factor), 100.0 * std::expm1(r.operating.nuisance[1].log_factor));
   ASSERT_EQ(r.operating.nuisance.size(), 2u);
   for (const auto& nu : r.operating.nuisance) EXPECT_NEAR(nu.log_factor, std::log(1.03), 0.005) << nu.link;
 }
@@ -196,7 +197,7 @@ TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
     EXPECT_EQ(r.faults.front().name, c.first) << c.dir;
     EXPECT_NEAR(r.faults.front().value, c.value, c.tolerance) << c.dir;
     EXPECT_TRUE(r.explained) << c.dir;
-    std::printf("%s: residual T/threshold %.1f, drift D %.1f (threshold %.1f); %s %s %.4f +- %.4f, chi2 %.0f -> %.0f, nrmse %.4f -> %.4f, "
+    std::printf("%s: residual T/threshold %.3f, drift D %.1f (threshold %.1f); %s %s %.4f +- %.4f, chi2 %.0f -> %.0f, nrmse %.4f -> %.4f, "
                 "%d model FRFs\n",
                 c.dir, r.operating.residual_statistic / r.operating.residual_threshold, r.operating.drift_statistic,
                 r.operating.drift_threshold, r.faults.front().name.c_str(), r.faults.front().location.c_str(), r.faults.front().value,
