@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "ambdiag/algorithms/operating_reference.h"
+#include "diagnosis_internal.h"
 
 namespace ambdiag::operating_detail {
 
@@ -46,5 +47,18 @@ struct NuisanceFit {
 // and chi2 that of M(s, 0). An empty run.offset is zero.
 NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound,
                          const Eigen::VectorXd& start);
+
+// The normal spread of theta for a new run: (1 + 1/n) Sigma (the run's own
+// drift and that of the references' mean) plus the mean's noise, plus
+// `estimate_cov` (the run's fit) when given.
+Eigen::MatrixXd drift_covariance(const OperatingReference& ref, const Eigen::MatrixXd& estimate_cov);
+
+// The ranked fault diagnosis of a detected run (a: aligned with mean = the
+// drift-fitted prediction; res: its detection filled in, residual test's
+// threshold in res.threshold). Fills faults, explained, chi2 and NRMSE
+// before / after, the models; returns the model FRFs spent.
+int diagnose_faults(const PlantModel& plant, const std::vector<int>& links, const OperatingReference& ref,
+                    const diagnosis_detail::Aligned& a, const RunData& run, const NuisanceFit& nf, const DiagnosisOptions& options,
+                    DiagnosisResult& res);
 
 }  // namespace ambdiag::operating_detail

@@ -217,6 +217,72 @@ TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
   }
 }
 
+// Runs estimated from time data state sigma with few degrees of freedom
+// (`sigma_dof`, written by `ambdiag frf`): references and runs alike here,
+// nu = 30. The residual test is then the scaled chi2 of diagnosis.h with
+// the dof of both variances, kappa is tested against d1 F(d1, d2), and the
+// rate stays at most alpha (binomial(200, 0.0253) for the residual alone: 5
+// +- 2.2; measured 1, 4, 2 over three seeds; the slow test counts 1000).
+TEST(OperatingReference, EstimatedSigmaKeepsTheFalseAlarmRate) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  const int nu = 30;
+  std::mt19937_64 rng(16008);
+  std::chi_squared_distribution<double> chi2(nu);
+  auto estimated = [&](FrfData run) {
+    for (auto& e : run.entries)
+      for (double& sg : e.sigma) sg *= std::sqrt(chi2(rng) / nu);
+    run.set_meta("sigma_dof", std::to_string(nu));
+    return run;
+  };
+  const Operation op;
+  DiagnosisOptions opt;
+  opt.alpha = 0.05;
+  opt.detect_only = true;
+  int alarms = 0, residual = 0;
+  for (int m = 0; m < 10; ++m) {
+    std::vector<FrfData> refs;
+    for (int i = 0; i < 3; ++i) refs.push_back(estimated(testing::healthy_run(plant, like, op, rng)));
+    const OperatingReference ref = learn_operating_reference(plant, refs);
+    for (int k = 0; k < 20; ++k) {
+      const DiagnosisResult r = diagnose(plant, ref, estimated(testing::healthy_run(plant, like, op, rng)), opt);
+      alarms += r.detected;
+      residual += r.operating.residual_detected;
+    }
+  }
+  std::printf("estimated sigma (nu %d): alarms %d of 200 (residual %d)\n", nu, alarms, residual);
+  EXPECT_LE(alarms, 19);
+  EXPECT_LE(residual, 12);
+}
+
+// A plant without fluid-seal links has no nuisance: the speed alone is
+// followed, only the residual test runs (at alpha), and a crack is found.
+TEST(OperatingReference, PlantWithoutSealLinksTestsTheResidualOnly) {
+  PlantModel plant = reference_plant();
+  std::erase_if(plant.links, [](const Link& l) { return l.kind == "seal" || l.kind == "balance_piston"; });
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16009);
+  std::vector<FrfData> refs;
+  for (double rpm : {2900.0, 2950.0, 3000.0}) refs.push_back(testing::simulate_run(plant, like, rpm, rng));
+  const OperatingReference ref = operating_reference_from_json(operating_reference_to_json(learn_operating_reference(plant, refs)));
+  EXPECT_TRUE(ref.nuisance_links.empty());
+  DiagnosisOptions opt;
+  opt.alpha = 1e-3;
+  const DiagnosisResult healthy = diagnose(plant, ref, testing::simulate_run(plant, like, 3030.0, rng), opt);
+  EXPECT_FALSE(healthy.detected) << healthy.p_value;
+  EXPECT_EQ(healthy.operating.alpha_each, opt.alpha);
+  const auto hyps = fault_hypotheses(plant);
+  const FaultHypothesis* crack = nullptr;
+  for (const auto& h : hyps)
+    if (h.kind == FaultKind::rotor_crack && h.elements == std::vector<int>{8}) crack = &h;
+  ASSERT_NE(crack, nullptr);
+  const DiagnosisResult r = diagnose(plant, ref, testing::simulate_run(apply_fault(plant, *crack, 0.7), like, 2980.0, rng), opt);
+  ASSERT_TRUE(r.detected);
+  ASSERT_FALSE(r.faults.empty());
+  EXPECT_EQ(r.faults.front().name, "rotor_crack");
+  EXPECT_NEAR(r.faults.front().value, 0.7, 0.02);
+}
+
 // A measured run on another grid (half-line offsets, a narrower band): the
 // references' b and its variance are interpolated; outside their range the
 // run is refused.

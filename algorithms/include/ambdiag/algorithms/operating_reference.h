@@ -84,6 +84,9 @@ struct OperatingReference {
   std::vector<double> log_factor_mean_cov;  // K x K, row-major: of theta_mean from the noise
   double common_sd = 0.0, link_sd = 0.0;    // used: max(estimate, floor)
   double common_sd_estimate = 0.0, link_sd_estimate = 0.0;  // from the runs alone
+  // Real degrees of freedom of the entries' mean stated variance (sigma2),
+  // n^2 / sum_i (1 / nu_i) from the runs' `sigma_dof`; 0: exact (none stated).
+  double sigma2_dof = 0.0;
   std::vector<OperatingEntry> entries;
   const OperatingEntry* find(const std::string& output, const std::string& input) const;
 };
