@@ -178,6 +178,32 @@ TEST(OperatingReference, BalancePistonWearAtAnotherSpeedWithSealDriftIsDiagnosed
     std::printf("  %s %s %.4f chi2 %.1f\n", r.faults[i].name.c_str(), r.faults[i].location.c_str(), r.faults[i].value, r.faults[i].chi2);
 }
 
+// The other annular seal worn, at 2 % below the references' speeds, seals
+// drifted by 1 %: the drift of one link is told from the other's wear.
+TEST(OperatingReference, ImpellerSealWearAtAnotherSpeedIsNotTakenForTheBalancePiston) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16007);
+  const OperatingReference ref = learn_operating_reference(plant, simulated_references(plant, like, Operation{}, rng));
+  const FaultHypothesis* seal = nullptr;
+  const auto hyps = fault_hypotheses(plant);
+  for (const auto& h : hyps)
+    if (h.kind == FaultKind::impeller_seal_wear) seal = &h;
+  ASSERT_NE(seal, nullptr);
+  const PlantModel truth = apply_fault(testing::drifted(plant, SealDrift{0.01, {}}), *seal, 1.3);
+  DiagnosisOptions opt;
+  opt.alpha = kRecommendedAlphaPerRun;
+  const DiagnosisResult r = diagnose(plant, ref, testing::simulate_run(truth, like, 2950.0 * 0.98, rng), opt);
+  ASSERT_TRUE(r.detected);
+  ASSERT_FALSE(r.faults.empty());
+  EXPECT_EQ(r.faults.front().name, "impeller_seal_wear");
+  EXPECT_LE(r.faults.front().ci_lo, 1.3);
+  EXPECT_GE(r.faults.front().ci_hi, 1.3);
+  std::printf("impeller seal: drift D %.1f, residual T/thr %.3f; %s %.4f [%.4f, %.4f]\n", r.operating.drift_statistic,
+              r.operating.residual_statistic / r.operating.residual_threshold, r.faults.front().name.c_str(), r.faults.front().value,
+              r.faults.front().ci_lo, r.faults.front().ci_hi);
+}
+
 // The shared cases (independent generator) through the operating path,
 // against three of the shared reference runs.
 TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
