@@ -204,6 +204,24 @@ TEST(OperatingReference, ImpellerSealWearAtAnotherSpeedIsNotTakenForTheBalancePi
               r.faults.front().ci_lo, r.faults.front().ci_hi);
 }
 
+// A change no fault model and no seal drift has (a housing resonance 8 %
+// higher, at another speed): detected by the residual test and `unknown`,
+// not forced into a drift or a seal fault.
+TEST(OperatingReference, UnmodelledChangeIsUnknown) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16010);
+  const OperatingReference ref = learn_operating_reference(plant, simulated_references(plant, like, Operation{}, rng));
+  PlantModel changed = plant;
+  changed.housings.at(0).f_hz *= 1.08;
+  const DiagnosisResult r = diagnose(plant, ref, testing::simulate_run(changed, like, 2950.0 * 1.01, rng));
+  ASSERT_TRUE(r.detected);
+  EXPECT_TRUE(r.operating.residual_detected);
+  ASSERT_FALSE(r.faults.empty());
+  EXPECT_EQ(r.faults.front().name, "unknown");
+  EXPECT_FALSE(r.explained);
+}
+
 // The shared cases (independent generator) through the operating path,
 // against three of the shared reference runs.
 TEST(OperatingReference, SharedFaultCasesAreDetectedAndDiagnosed) {
