@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "ambdiag/algorithms/operating_reference.h"
+#include "diagnosis_internal.h"
 
 namespace ambdiag::operating_detail {
 
@@ -36,14 +37,28 @@ struct NuisanceFit {
   Eigen::MatrixXd cov;          // of theta (noise)
   double chi2 = 0.0;            // sum |w (M(theta) + b - H)|^2
   Values at_theta;              // M(s, theta)
-  Values at_zero;               // M(s, 0)
-  std::vector<Values> jacobian; // dM/dtheta_k at 0, FRF units, [k][entry][line]
+  Values at_start;              // M(s, start)
+  std::vector<Values> jacobian; // dM/dtheta_k at start, FRF units, [k][entry][line]
   int evaluations = 0;
 };
 
 // Levenberg-Marquardt with Broyden updates from a difference Jacobian at
-// theta = 0 (1 + K + iterations model FRFs). With no links, theta is empty
-// and chi2 that of M(s, 0).
-NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound);
+// `start` (1 + K + iterations model FRFs). With no links, theta is empty
+// and chi2 that of M(s, 0). An empty run.offset is zero.
+NuisanceFit fit_nuisance(const PlantModel& plant, const std::vector<int>& links, const RunData& run, double bound,
+                         const Eigen::VectorXd& start);
+
+// The normal spread of theta for a new run: (1 + 1/n) Sigma (the run's own
+// drift and that of the references' mean) plus the mean's noise, plus
+// `estimate_cov` (the run's fit) when given.
+Eigen::MatrixXd drift_covariance(const OperatingReference& ref, const Eigen::MatrixXd& estimate_cov);
+
+// The ranked fault diagnosis of a detected run (a: aligned with mean = the
+// drift-fitted prediction; res: its detection filled in, residual test's
+// threshold in res.threshold). Fills faults, explained, chi2 and NRMSE
+// before / after, the models; returns the model FRFs spent.
+int diagnose_faults(const PlantModel& plant, const std::vector<int>& links, const OperatingReference& ref,
+                    const diagnosis_detail::Aligned& a, const RunData& run, const NuisanceFit& nf, const DiagnosisOptions& options,
+                    DiagnosisResult& res);
 
 }  // namespace ambdiag::operating_detail

@@ -83,6 +83,7 @@ std::string operating_reference_to_json(const OperatingReference& r) {
                     {"link_sd", r.link_sd},
                     {"common_sd_estimate", r.common_sd_estimate},
                     {"link_sd_estimate", r.link_sd_estimate},
+                    {"sigma2_dof", r.sigma2_dof},
                     {"runs", runs},
                     {"freq_hz", r.freq_hz},
                     {"entries", entries}};
@@ -120,6 +121,8 @@ OperatingReference operating_reference_from_json(const std::string& text_in) {
   r.log_factor_mean_cov = numbers(field(doc, "log_factor_mean_cov", ""), "log_factor_mean_cov", k * k);
   r.common_sd_estimate = number(field(doc, "common_sd_estimate", ""), "common_sd_estimate");
   r.link_sd_estimate = number(field(doc, "link_sd_estimate", ""), "link_sd_estimate");
+  r.sigma2_dof = number(field(doc, "sigma2_dof", ""), "sigma2_dof");
+  if (r.sigma2_dof != 0.0 && !(r.sigma2_dof > 4.0)) fail("sigma2_dof", "must be 0 (exact) or > 4");
   if (k > 0) {
     r.common_sd = positive(field(doc, "common_sd", ""), "common_sd");
     r.link_sd = positive(field(doc, "link_sd", ""), "link_sd");

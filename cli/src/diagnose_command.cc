@@ -9,6 +9,7 @@
 
 #include "ambdiag/algorithms/diagnosis.h"
 #include "ambdiag/algorithms/modal_features.h"
+#include "ambdiag/algorithms/operating_reference.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"
@@ -64,9 +65,32 @@ json fault_json(const FaultEstimate& f, const PlantModel& plant) {
   return j;
 }
 
+json operating_json(const OperatingTests& t) {
+  json nuisance = json::array();
+  for (const auto& n : t.nuisance)
+    nuisance.push_back({{"link", n.link}, {"log_factor", n.log_factor}, {"factor", std::exp(n.log_factor)}, {"sd", n.sd}, {"normal_sd", n.normal_sd}});
+  return {{"speed_rpm", t.speed_rpm},
+          {"alpha_each", t.alpha_each},
+          {"residual",
+           {{"statistic", t.residual_statistic}, {"threshold", t.residual_threshold}, {"dof", t.residual_dof}, {"p_value", t.residual_p_value},
+            {"detected", t.residual_detected}}},
+          {"drift",
+           {{"statistic", t.drift_statistic}, {"threshold", t.drift_threshold}, {"dof", t.drift_dof}, {"p_value", t.drift_p_value},
+            {"detected", t.drift_detected}}},
+          {"nuisance", nuisance}};
+}
+
 void print_text(const DiagnosisResult& r) {
   std::printf("detection: %s (chi2 %.1f, threshold %.1f at false-alarm rate %g, dof %.0f, p %.3g)\n",
               r.detected ? "CHANGED" : "no change", r.statistic, r.threshold, r.alpha, r.dof, r.p_value);
+  if (r.operating.used) {
+    const OperatingTests& t = r.operating;
+    std::printf("  at %.1f rpm; residual after the seal drift: chi2 %.1f, threshold %.1f (p %.3g); drift: %.2f, threshold %.2f (p %.3g)\n",
+                t.speed_rpm, t.residual_statistic, t.residual_threshold, t.residual_p_value, t.drift_statistic, t.drift_threshold,
+                t.drift_p_value);
+    for (const auto& n : t.nuisance)
+      std::printf("  seal drift %-20s %+.2f %% (normal +-%.2f %%)\n", n.link.c_str(), 100.0 * std::expm1(n.log_factor), 100.0 * n.normal_sd);
+  }
   if (!r.detected) return;
   std::printf("isolation: %s\n", r.isolation.c_str());
   for (const auto& s : r.symptoms) {
@@ -122,7 +146,8 @@ void print_features(const ModalFeatureReference& ref, const ModalFeatureTest& t)
 }
 
 int run_diagnose(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--model", "--measured", "--svg", "--alpha"}, {"--json", "--features"}, {"--reference"});
+  const Args args(argv, {"--model", "--measured", "--svg", "--alpha", "--save-reference"}, {"--json", "--features", "--same-speed"},
+                  {"--reference"});
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
   const auto model_path = args.option("--model");
   const auto measured_path = args.option("--measured");
@@ -141,14 +166,25 @@ int run_diagnose(const std::vector<std::string>& argv) {
   const FrfData measured = read_frf_csv(*measured_path);
   std::fprintf(stderr, "diagnose: %zu references, %zu entries x %zu lines\n", ref_runs.size(), measured.entries.size(),
                measured.freq_hz.size());
-  const ReferenceStatistics ref = reference_statistics(ref_runs);
+  // Default: the operating reference (references at any speed, seal drift
+  // learnt); --same-speed: the reference statistics of identical runs.
+  const bool same_speed = args.flag("--same-speed");
+  ReferenceStatistics ref;
+  OperatingReference oref;
+  if (same_speed) {
+    ref = reference_statistics(ref_runs);
+  } else {
+    std::fprintf(stderr, "diagnose: learning the operating reference (model at each run's speed, seal drift)\n");
+    oref = learn_operating_reference(plant, ref_runs);
+    if (auto path = args.option("--save-reference")) write_file_atomic(*path, operating_reference_to_json(oref));
+  }
   Progress bar("diagnose", 100);
   opt.progress = [&](const std::string& stage, int done, int total) {
     static std::string last;
     if (stage != last) std::fprintf(stderr, "diagnose: %s\n", stage.c_str()), last = stage;
     bar.update(total > 0 ? 100L * done / total : 0);
   };
-  const DiagnosisResult r = diagnose(plant, ref, measured, opt);
+  const DiagnosisResult r = same_speed ? diagnose(plant, ref, measured, opt) : diagnose(plant, oref, measured, opt);
   bar.finish();
   if (auto svg = args.option("--svg")) write_file_atomic(*svg, diagnosis_svg(r, measured));
   json features;
@@ -177,16 +213,27 @@ int run_diagnose(const std::vector<std::string>& argv) {
                 {"nrmse_after", r.nrmse_after},
                 {"chi2_before", r.chi2_before},
                 {"chi2_after", r.chi2_after},
-                {"values", r.dof / 2}};
+                {"values", (r.operating.used ? r.operating.residual_dof : r.dof) / 2}};
   out["not_assessed"] = json::array();
   for (const auto& s : r.not_assessed) {
     const auto colon = s.find(':');
     out["not_assessed"].push_back({{"fault", s.substr(0, colon)}, {"reason", s.substr(colon + 2)}});
   }
-  json rj = {{"runs", ref.runs}, {"entries", json::array()}};
-  for (const auto& e : ref.entries)
-    if (e.kappa != 1.0 || !e.sigma_stated)
-      rj["entries"].push_back({{"output", e.output}, {"input", e.input}, {"kappa", e.kappa}, {"sigma_stated", e.sigma_stated}});
+  json rj;
+  if (same_speed) {
+    rj = {{"runs", ref.runs}, {"entries", json::array()}};
+    for (const auto& e : ref.entries)
+      if (e.kappa != 1.0 || !e.sigma_stated)
+        rj["entries"].push_back({{"output", e.output}, {"input", e.input}, {"kappa", e.kappa}, {"sigma_stated", e.sigma_stated}});
+  } else {
+    json speeds = json::array();
+    for (const auto& run : oref.runs) speeds.push_back(run.speed_rpm);
+    rj = {{"runs", oref.runs.size()}, {"speeds_rpm", speeds}, {"common_sd", oref.common_sd}, {"link_sd", oref.link_sd},
+          {"entries", json::array()}};
+    for (const auto& e : oref.entries)
+      if (e.kappa != 1.0) rj["entries"].push_back({{"output", e.output}, {"input", e.input}, {"kappa", e.kappa}, {"sigma_stated", true}});
+    out["operating"] = operating_json(r.operating);
+  }
   out["reference"] = rj;
   if (!features.is_null()) out["features"] = features;
   std::cout << out.dump(2) << "\n";
@@ -199,10 +246,15 @@ std::vector<Command> diagnose_commands() {
   return {{{"diagnose"},
            "detection and ranked fault diagnosis against reference runs",
            "usage: ambdiag diagnose --model PLANT.json --reference REF.csv [REF2.csv ...] --measured FRF.csv\n"
-           "                        [--json] [--svg FILE] [--alpha P] [--features]\n\n"
-           "Detection: chi-square test of the measured FRF matrix against the mean of the reference runs,\n"
-           "weighted by the sigma_ columns (scaled up to the between-run scatter when that is larger);\n"
-           "false-alarm rate --alpha (default 0.01). When detected, every fault model of the plant (dry run,\n"
+           "                        [--json] [--svg FILE] [--alpha P] [--features] [--same-speed]\n"
+           "                        [--save-reference FILE.json]\n\n"
+           "Detection under operating conditions: the model at each run's speed (speed_rpm of its file),\n"
+           "the fluid-seal drift (links of kind seal, balance_piston) fitted per run; a residual test (what\n"
+           "the drift cannot explain, weighted by the sigma_ columns) and a drift test (against the spread\n"
+           "learnt from the references, at least 3 % common and 1 % per seal), false-alarm rate --alpha per\n"
+           "run (default 0.01; 1e-5 for monitoring every hour). References may run at other speeds than the\n"
+           "measurement. --same-speed: the older test against the mean of identical reference runs.\n"
+           "--save-reference writes the learnt operating reference (JSON). When detected, every fault model of the plant (dry run,\n"
            "balance piston and impeller seal wear, rotor crack by element, shaft nut loosening at the\n"
            "impeller hub, sensor and actuator gain) is fitted to the measured change by weighted least\n"
            "squares, scored by BIC and ranked; 'unknown' comes first when none brings the residual to the\n"

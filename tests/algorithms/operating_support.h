@@ -36,10 +36,11 @@ inline PlantModel drifted(const PlantModel& plant, const SealDrift& drift) {
 
 // One run of `truth` (the plant, drifted and possibly faulty) at speed_rpm,
 // on the grid and entries of `like`, with its sigma and noise.
-inline FrfData simulate_run(const PlantModel& truth, const FrfData& like, double speed_rpm, std::mt19937_64& rng) {
+inline FrfData simulate_run(const PlantModel& truth, const FrfData& like, double speed_rpm, std::mt19937_64& rng,
+                            const FrfSynthesisOptions& synthesis = {FrfMethod::modal}) {
   FrfData skeleton = like;
   skeleton.speed_rpm = speed_rpm;
-  FrfData clean = model_frf_like(truth, skeleton);
+  FrfData clean = model_frf_like(truth, skeleton, synthesis);
   clean.metadata = like.metadata;
   clean.set_meta("speed_rpm", std::to_string(speed_rpm));
   clean.speed_rpm = speed_rpm;
@@ -53,7 +54,8 @@ struct Operation {
   double nominal_rpm = 2950.0;
 };
 
-inline FrfData healthy_run(const PlantModel& plant, const FrfData& like, const Operation& op, std::mt19937_64& rng) {
+inline FrfData healthy_run(const PlantModel& plant, const FrfData& like, const Operation& op, std::mt19937_64& rng,
+                           const FrfSynthesisOptions& synthesis = {FrfMethod::modal}) {
   std::uniform_real_distribution<double> u(-op.speed_span, op.speed_span);
   std::normal_distribution<double> n(0.0, 1.0);
   SealDrift d;
@@ -61,7 +63,7 @@ inline FrfData healthy_run(const PlantModel& plant, const FrfData& like, const O
   for (const auto& l : plant.links)
     if (l.kind == "seal" || l.kind == "balance_piston") d.own.push_back(op.own_sd * n(rng));
   const double rpm = op.nominal_rpm * (1.0 + u(rng));
-  return simulate_run(drifted(plant, d), like, rpm, rng);
+  return simulate_run(drifted(plant, d), like, rpm, rng, synthesis);
 }
 
 inline FrfData shared_like() { return read_frf_csv(data_file("reference_pump/frf_ref_1.csv").string()); }

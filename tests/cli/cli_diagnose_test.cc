@@ -58,6 +58,32 @@ TEST(CliDiagnose, HealthyRunIsNotDetected) {
   EXPECT_TRUE(j["faults"].empty());
 }
 
+// References at another speed than the measurement are accepted (the model
+// is evaluated at each run's speed); --same-speed keeps the older test,
+// which refuses them.
+TEST(CliDiagnose, MeasurementAtAnotherSpeedIsAcceptedUnlessSameSpeedIsAsked) {
+  std::ifstream in(data("reference_pump/frf_ref_1.csv"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto at = text.find("# speed_rpm: 2950");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, std::string("# speed_rpm: 2950").size(), "# speed_rpm: 3038.5");
+  const std::string faster = testing::write_scratch("faster.csv", text).string();
+  std::string some = "--reference";
+  for (int i = 2; i <= 4; ++i) some += " " + data("reference_pump/frf_ref_" + std::to_string(i) + ".csv");
+  const std::string saved = (testing::scratch_dir() / "operating_reference.json").string();
+  const Result r = run("diagnose --model " + data("reference_pump/plant.json") + " " + some + " --measured " + faster +
+                       " --json --save-reference " + saved);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_DOUBLE_EQ(j["operating"]["speed_rpm"].get<double>(), 3038.5);
+  EXPECT_EQ(j["reference"]["speeds_rpm"].size(), 3u);
+  EXPECT_EQ(j["detected"].get<bool>(), j["statistic"].get<double>() > j["threshold"].get<double>());
+  std::ifstream saved_in(saved);
+  EXPECT_EQ(nlohmann::json::parse(saved_in)["format"], "ambdiag.operating_reference/1");
+  EXPECT_EQ(run("diagnose --model " + data("reference_pump/plant.json") + " " + some + " --measured " + faster + " --json --same-speed").code,
+            3);
+}
+
 TEST(CliDiagnose, UsageAndBadInput) {
   EXPECT_EQ(run("diagnose --model " + data("reference_pump/plant.json")).code, 2);
   EXPECT_EQ(run("diagnose --help").code, 0);

@@ -98,12 +98,14 @@ struct NuisanceEstimate {
 };
 
 // The two tests of the operating-reference detection; empty (used = false)
-// for the same-speed path.
+// for the same-speed path. DiagnosisResult's statistic, threshold and dof
+// are those of the test with the smaller p-value (both at alpha_each), so
+// that detected == statistic > threshold still holds.
 struct OperatingTests {
   bool used = false;
   double speed_rpm = 0.0;         // where the model was evaluated
   double alpha_each = 0.0;        // per test, 1 - sqrt(1 - alpha)
-  double residual_p_value = 1.0;  // of the residual test (statistic, threshold, dof of the result)
+  double residual_statistic = 0.0, residual_threshold = 0.0, residual_dof = 0.0, residual_p_value = 1.0;
   bool residual_detected = false;
   double drift_statistic = 0.0, drift_threshold = 0.0, drift_p_value = 1.0;
   int drift_dof = 0;
