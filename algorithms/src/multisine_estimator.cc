@@ -222,12 +222,18 @@ FrfEstimate estimate_multisine(const RunRecording& run, const ChannelPlan& plan,
     segs.push_back(segment_spectra(run, plan, s, period, k_lo, nb, f1_per_sample, on_grid));
     segs.back().index = i;
   }
+  // A harmonic on the excitation grid is periodic with it: its synchronous
+  // response (unbalance at 1x: large) lands on the nearest line as if it
+  // were the plant's response to the excitation. That line is dropped, not
+  // kept with a wrong H and a sigma that does not know it.
+  std::vector<std::pair<int64_t, std::string>> synchronous_lines;  // bin, why
   for (int h = 1; h <= kSynchronousHarmonics; ++h) {
     const double f_hz = h * f1_per_sample * fs;
     if (on_grid[static_cast<size_t>(h - 1)] && f_hz >= k_lo * df && f_hz <= k_hi * df)
-      est.warnings.push_back(std::to_string(h) + "x the speed (" + frf_estimation::format_number(f_hz) +
-                             " Hz) is periodic with the excitation: its synchronous response cannot be told from "
-                             "H at that line");
+      synchronous_lines.push_back({std::llround(f_hz / df) - k_lo,
+                                   std::to_string(h) + "x the speed (" + frf_estimation::format_number(f_hz) +
+                                       " Hz) is periodic with the excitation: its synchronous response cannot be told "
+                                       "from H there"});
   }
   double top = 0.0;
   for (const auto& s : segs) top = std::max(top, s.reference_power);
@@ -278,6 +284,12 @@ FrfEstimate estimate_multisine(const RunRecording& run, const ChannelPlan& plan,
   for (int64_t b = 0; b < nb; ++b) {
     if (!(power[static_cast<size_t>(b)] > kExcitedPowerFraction * max_power)) continue;
     const double f_hz = static_cast<double>(k_lo + b) * df;
+    if (const auto sync = std::find_if(synchronous_lines.begin(), synchronous_lines.end(),
+                                       [&](const auto& l) { return l.first == b; });
+        sync != synchronous_lines.end()) {
+      out.drop(f_hz, sync->second);
+      continue;
+    }
     // Pooled per-period covariance; the mean of M_k periods has 1 / M_k of it.
     Eigen::MatrixXcd pooled;
     if (with_sigma) {

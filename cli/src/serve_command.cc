@@ -147,7 +147,7 @@ std::vector<Command> serve_commands() {
            "(default 10) before its end is marked incomplete. SIGINT/SIGTERM stop it cleanly.\n"
            "Every complete identification run of a pump with a model is analysed by N worker\n"
            "threads (--workers, default 2; 0: store only) at idle priority: FRF, modal fit, detection\n"
-           "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-4), diagnosis.\n"
+           "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-5), diagnosis.\n"
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
            "requests without one read as viewer. One server per historian file (FILE.lock).\n"

@@ -28,7 +28,7 @@ struct AnalysisOptions {
   std::string db_path;
   int workers = 2;              // analysis threads
   int proposed_reference_runs = 3;  // first N complete identification runs proposed as the reference
-  double alpha = 1e-4;          // false-alarm rate of detection per run (docs/diagnosis.md)
+  double alpha = 1e-5;          // false-alarm rate of detection per run: kRecommendedAlphaPerRun (docs/diagnosis.md)
   bool idle_priority = true;    // workers at SCHED_IDLE: ingest and REST first
   bool verbose = true;          // one line per job on stderr
 };
