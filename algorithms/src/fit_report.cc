@@ -111,6 +111,29 @@ std::string stabilization_svg(const RationalFitResult& fit, const FrfData& frf) 
   return render_svg(fig);
 }
 
+namespace {
+
+// Phase in degrees, unwrapped along the lines: a compliance sits near
+// +-180 deg above its modes, where wrapped values would jump across the
+// whole panel with every noisy line.
+std::vector<double> unwrapped_phase_deg(const std::vector<std::complex<double>>& h) {
+  std::vector<double> out(h.size());
+  double offset = 0.0, prev = 0.0;
+  for (size_t k = 0; k < h.size(); ++k) {
+    const double a = std::arg(h[k]);
+    if (k > 0) {
+      const double d = a - prev;
+      if (d > M_PI) offset -= 2 * M_PI;
+      if (d < -M_PI) offset += 2 * M_PI;
+    }
+    prev = a;
+    out[k] = (a + offset) * 180.0 / M_PI;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string bode_svg(const FrfData& measured, const FrfData& model, const std::string& title, int max_entries) {
   // The strongest entries carry the modes a reader looks for first.
   std::vector<std::pair<double, const FrfEntry*>> ranked;
@@ -128,29 +151,19 @@ std::string bode_svg(const FrfData& measured, const FrfData& model, const std::s
   SvgPanel mag, phase;
   mag.y_label = "|H| (" + measured.unit + ")";
   mag.log_y = true;
-  phase.y_label = "phase (deg)";
-  phase.y_range = std::make_pair(-180.0, 180.0);
+  phase.y_label = "phase, unwrapped (deg)";
   for (size_t k = 0; k < ranked.size(); ++k) {
     const FrfEntry& e = *ranked[k].second;
     const std::string color = kColors[k % std::size(kColors)];
     const std::string name = e.output + "/" + e.input;
-    SvgSeries m{name + " measured", {}, {}, color}, p{"", {}, {}, color};
-    for (size_t l = 0; l < measured.freq_hz.size(); ++l) {
-      m.x.push_back(measured.freq_hz[l]);
-      m.y.push_back(std::abs(e.h[l]));
-      p.x.push_back(measured.freq_hz[l]);
-      p.y.push_back(std::arg(e.h[l]) * 180.0 / M_PI);
-    }
+    SvgSeries m{name + " measured", measured.freq_hz, {}, color}, p{"", measured.freq_hz, unwrapped_phase_deg(e.h), color};
+    for (const auto& h : e.h) m.y.push_back(std::abs(h));
     mag.series.push_back(m);
     phase.series.push_back(p);
     if (const FrfEntry* me = model.find(e.output, e.input)) {
-      SvgSeries mm{name + " model", {}, {}, color, false, true}, mp{"", {}, {}, color, false, true};
-      for (size_t l = 0; l < model.freq_hz.size() && l < me->h.size(); ++l) {
-        mm.x.push_back(model.freq_hz[l]);
-        mm.y.push_back(std::abs(me->h[l]));
-        mp.x.push_back(model.freq_hz[l]);
-        mp.y.push_back(std::arg(me->h[l]) * 180.0 / M_PI);
-      }
+      SvgSeries mm{name + " model", model.freq_hz, {}, color, false, true},
+          mp{"", model.freq_hz, unwrapped_phase_deg(me->h), color, false, true};
+      for (const auto& h : me->h) mm.y.push_back(std::abs(h));
       mag.series.push_back(mm);
       phase.series.push_back(mp);
     }

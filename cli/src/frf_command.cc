@@ -2,13 +2,17 @@
 // time-domain run recording (algorithms/frf_estimation.h).
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "ambdiag/algorithms/fit_report.h"
+#include "ambdiag/algorithms/frf_compare.h"
 #include "ambdiag/algorithms/frf_estimation.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/run_recording.h"
 #include "args.h"
@@ -19,7 +23,7 @@ namespace ambdiag::cli {
 namespace {
 
 int run_frf_estimate(const std::vector<std::string>& argv) {
-  const Args args(argv, {"-o", "--plant", "--method", "--nfft"}, {"--json"});
+  const Args args(argv, {"-o", "--plant", "--method", "--nfft", "--svg"}, {"--json"});
   args.expect_positional(1, "RUN_DIR");
   const auto out_path = args.option("-o");
   if (!out_path) throw UsageError("missing -o FRF.csv");
@@ -47,12 +51,14 @@ int run_frf_estimate(const std::vector<std::string>& argv) {
   }
 
   const std::string dir = args.positional()[0];
+  if (args.option("--svg") && !args.option("--plant")) throw UsageError("--svg needs --plant PLANT.json (measured vs model)");
   Progress progress("frf", 3);
   const RunRecording run = read_run(dir);
+  std::optional<PlantModel> plant;
   if (const auto plant_path = args.option("--plant")) {
-    const PlantModel plant = read_plant_file(*plant_path);
+    plant = read_plant_file(*plant_path);
     try {
-      run.validate_against(plant);
+      run.validate_against(*plant);
     } catch (const InputError& e) {
       rethrow_with_context(e, dir + " (against " + *plant_path + ")");
     }
@@ -66,6 +72,12 @@ int run_frf_estimate(const std::vector<std::string>& argv) {
   }
   progress.update(2);
   write_frf_csv(*out_path, est.frf);
+  if (const auto svg = args.option("--svg")) {
+    // The model at the run's speed on the estimate's grid (cli.md "Speed").
+    const FrfData model = model_frf_like(*plant, est.frf);
+    write_file_atomic(*svg, bode_svg(est.frf, model, dir + ": measured (solid) vs model (dashed), NRMSE " +
+                                                         std::to_string(compare_frf(model, est.frf).nrmse).substr(0, 5)));
+  }
   progress.finish();
 
   for (const auto& w : est.warnings)
@@ -104,7 +116,7 @@ std::vector<Command> estimate_commands() {
   return {
       {{"frf"},
        "FRF matrix estimated from a time-domain run recording",
-       "usage: ambdiag frf RUN_DIR -o FRF.csv [--plant PLANT.json] [--method M] [--nfft N] [--json]\n\n"
+       "usage: ambdiag frf RUN_DIR -o FRF.csv [--plant PLANT.json [--svg BODE.svg]] [--method M] [--nfft N] [--json]\n\n"
        "Estimates H = response / input (with sigma_ and coh_ columns) from a run recording and writes\n"
        "an ambdiag.frf/1 file. Inputs are the measured forces, with the noise-free references as\n"
        "instruments (unbiased in the closed AMB loop); runs without force channels give H relative to\n"
@@ -118,6 +130,8 @@ std::vector<Command> estimate_commands() {
        "few independent segments) exits 3 with the reason.\n\n"
        "  -o FRF.csv       output file\n"
        "  --plant FILE     check that every channel names a sensor or actuator of this plant model\n"
+       "  --svg FILE       with --plant: |H| and unwrapped phase of the four strongest entries, measured vs\n"
+       "                   the model at the run's speed\n"
        "  --method M       chirp and random runs: auto (gated for a chirp, welch for random), gated,\n"
        "                   lpm (local polynomial method on whole segments), welch (references as\n"
        "                   instruments; H1 when the input is the reference), h1 (S_xf S_ff^-1 on the\n"

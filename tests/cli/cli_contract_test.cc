@@ -7,6 +7,7 @@
 #include <string>
 
 #include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/io_util.h"
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/core/uff58.h"
 #include "cli_run.h"
@@ -181,6 +182,24 @@ TEST(CliFrf, EstimatesAMultisineRunIntoAReadableFrfFile) {
   EXPECT_EQ(f.speed_rpm, 2950.0);
 }
 
+// The Bode plot measured vs model: an SVG document naming the run, with a
+// measured and a model series per entry shown (four strongest).
+TEST(CliFrf, SvgDrawsMeasuredAgainstTheModel) {
+  const auto dir = testing::scratch_dir();
+  const auto svg = dir / "bode.svg";
+  const Result r = run("frf " + data("reference_pump/run_ref_1") + " -o " + (dir / "f.csv").string() + " --plant " +
+                       data("reference_pump/plant.json") + " --svg " + svg.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string text = read_file_bytes(svg.string());
+  EXPECT_NE(text.find("<svg"), std::string::npos);
+  EXPECT_NE(text.find("run_ref_1: measured (solid) vs model (dashed), NRMSE 0.0"), std::string::npos);
+  size_t measured = 0, model = 0;
+  for (size_t at = text.find(" measured<"); at != std::string::npos; at = text.find(" measured<", at + 1)) ++measured;
+  for (size_t at = text.find(" model<"); at != std::string::npos; at = text.find(" model<", at + 1)) ++model;
+  EXPECT_EQ(measured, 4u);
+  EXPECT_EQ(model, 4u);
+}
+
 TEST(CliFrf, BrokenRunExitsThreeNamingTheFolderAndTheChannel) {
   RunRecording bad = read_run(data("reference_pump/run_ref_1"));
   const int c = bad.channel_index("rZ");
@@ -209,6 +228,7 @@ TEST(CliFrf, UsageErrorsExitTwo) {
   EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1")).code, 2);  // no -o
   EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1") + " -o x.csv --method h2").code, 2);
   EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1") + " -o x.csv --nfft 1001").code, 2);
+  EXPECT_EQ(run("frf " + data("reference_pump/run_ref_1") + " -o x.csv --svg b.svg").code, 2);  // --svg needs --plant
   const Result h = run("frf --help");
   EXPECT_EQ(h.code, 0);
   EXPECT_NE(h.out.find("usage: ambdiag frf"), std::string::npos);
