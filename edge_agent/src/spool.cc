@@ -1,7 +1,6 @@
 #include "ambdiag/edge_agent/spool.h"
 
 #include <fcntl.h>
-#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -70,31 +69,9 @@ std::string hex(uint64_t v) {
 
 }  // namespace
 
-SpoolLock::SpoolLock(const fs::path& dir) {
-  fs::create_directories(dir);
-  const fs::path path = dir / "agent.lock";
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw std::runtime_error(path.string() + ": cannot open the spool lock (" + std::strerror(errno) + ")");
-  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-    const int err = errno;
-    char holder[32] = {};
-    const ssize_t n = ::pread(fd_, holder, sizeof holder - 1, 0);
-    ::close(fd_);
-    fd_ = -1;
-    if (err != EWOULDBLOCK)
-      throw std::runtime_error(path.string() + ": cannot lock the spool (" + std::strerror(err) + ")");
-    std::string pid(holder, n > 0 ? static_cast<size_t>(n) : 0);
-    pid.erase(pid.find_last_not_of(" \n") + 1);
-    throw InputError("spool folder " + dir.string() + " is in use by another ambdiag-agent" +
-                     (pid.empty() ? std::string() : " (pid " + pid + ")") + "; give each agent a folder of its own");
-  }
-  const std::string me = std::to_string(::getpid()) + "\n";
-  if (::ftruncate(fd_, 0) == 0) (void)!::pwrite(fd_, me.data(), me.size(), 0);
-}
-
-SpoolLock::~SpoolLock() {
-  if (fd_ >= 0) ::close(fd_);  // closing the descriptor releases the lock
-}
+SpoolLock::SpoolLock(const fs::path& dir)
+    : lock_((fs::create_directories(dir), (dir / "agent.lock").string()), "spool folder " + dir.string(), "ambdiag-agent",
+            "; give each agent a folder of its own") {}
 
 Spool::Spool(fs::path run_dir, uint64_t limit_bytes, size_t memory_blocks)
     : run_dir_(std::move(run_dir)),

@@ -94,6 +94,8 @@ TEST_F(ServiceTest, EveryRunIsAnalysedAndAReferenceAddsDetectionAndDiagnosis) {
   ASSERT_TRUE(healthy["detection"].is_object()) << healthy.dump();
   EXPECT_FALSE(healthy["detection"]["detected"].get<bool>()) << healthy["detection"].dump();
   EXPECT_GT(healthy["detection"]["false_alarm_rate"].get<double>(), 0.0);
+  // The seal drift fitted for the run, per fluid-seal link (for trends).
+  EXPECT_EQ(healthy["detection"]["operating"]["nuisance"].size(), 2u) << healthy["detection"].dump();
 
   const auto dry = wait_analysis(kDryRun, 180s, 1);
   ASSERT_EQ(dry["status"], "done") << dry.dump();

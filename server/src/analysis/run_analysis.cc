@@ -131,6 +131,9 @@ JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const Op
                       {"ratio", d.threshold > 0 ? d.statistic / d.threshold : 0.0},
                       {"dof", d.dof},
                       {"p_value", d.p_value}};
+    // The run's seal drift against its normal spread: what trends watch
+    // before it becomes a fault.
+    if (d.operating.used) r["detection"]["operating"] = operating_tests_to_json(d.operating);
     if (d.detected) {
       r["diagnosis"] = diagnosis_to_json(d, plant);
       out.artifacts.push_back(svg("diagnosis.svg", diagnosis_svg(d, frf)));

@@ -12,4 +12,9 @@ namespace ambdiag {
 
 nlohmann::json diagnosis_to_json(const DiagnosisResult& result, const PlantModel& plant);
 
+// The tests of detection under operating conditions (operating_reference.h):
+// the run's speed, the residual and drift tests, and per fluid-seal link the
+// drift fitted ("factor", "log_factor", "sd") against its normal spread.
+nlohmann::json operating_tests_to_json(const OperatingTests& tests);
+
 }  // namespace ambdiag

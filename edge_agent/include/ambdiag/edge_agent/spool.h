@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "ambdiag/core/checksum.h"
+#include "ambdiag/core/process_lock.h"
 #include "ambdiag/edge_agent/block.h"
 
 namespace ambdiag::agent {
@@ -64,12 +65,9 @@ class SpoolLock {
   // Creates `dir` if missing. Throws InputError naming the folder and the
   // holder's pid (written into the lock file) if another process holds it.
   explicit SpoolLock(const std::filesystem::path& dir);
-  ~SpoolLock();
-  SpoolLock(const SpoolLock&) = delete;
-  SpoolLock& operator=(const SpoolLock&) = delete;
 
  private:
-  int fd_ = -1;
+  ProcessLock lock_;
 };
 
 class Spool {
