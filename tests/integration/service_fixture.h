@@ -5,6 +5,8 @@
 
 #include <httplib.h>
 
+#include <functional>
+
 #include <nlohmann/json.hpp>
 
 #include "ambdiag/server/rest_server.h"
@@ -70,9 +72,11 @@ class ServiceTest : public StreamTest {
 
   // A copy of a shared run under another run id (and start time), so that a
   // pump has several healthy runs in a test.
-  fs::path copy_run(const std::string& shared_run, const std::string& run_id, const std::string& started_at) {
+  fs::path copy_run(const std::string& shared_run, const std::string& run_id, const std::string& started_at,
+                    const std::function<void(RunRecording&)>& change = {}) {
     RunRecording run = read_run(data_file(shared_run).string());
     run.run_id = run_id;
+    if (change) change(run);
     run.started_at = started_at;
     const fs::path out = dir / ("copy_" + std::to_string(log_n++));
     write_run(out.string(), run);

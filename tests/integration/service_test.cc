@@ -138,6 +138,35 @@ TEST_F(ServiceTest, KillDuringAnAnalysisAnalysesTheRunOnceAfterRestart) {
   EXPECT_EQ(jobs[0]["status"], "done");
 }
 
+// Bad input never stops the service: a run whose reference channel is dead
+// fails its analysis naming the channel, the next run is analysed; a
+// reference naming another pump's run is refused naming it.
+TEST_F(ServiceTest, ABadRunFailsItsJobWithTheReasonAndTheNextGoesOn) {
+  start_service({"--workers", "1"});
+  ASSERT_EQ(put("/api/v1/pumps/P-101/model", plant_text())->status, 200);
+  const auto dead = copy_run("reference_pump/run_ref_1", "P-101/dead-rZ", "2026-11-21T09:00:00Z", [](RunRecording& run) {
+    const int c = run.channel_index("rZ");
+    for (int64_t t = 0; t < run.frame_count(); ++t) run.samples[static_cast<size_t>(t) * run.channels.size() + c] = 0;
+  });
+  ASSERT_TRUE(replay(dead));
+  ASSERT_TRUE(replay(data_file("reference_pump/run_ref_1")));
+  const auto failed = wait_analysis("P-101/dead-rZ");
+  EXPECT_EQ(failed["status"], "failed") << failed.dump();
+  EXPECT_NE(failed.value("error", "").find("rZ"), std::string::npos) << failed.dump();
+  EXPECT_EQ(wait_analysis(kRefRun)["status"], "done");
+  const auto job = json_of(get("/api/v1/jobs?run_id=" + server::url_encode_segment("P-101/dead-rZ")))["jobs"];
+  ASSERT_EQ(job.size(), 1u);
+  EXPECT_EQ(job[0]["status"], "failed");
+  EXPECT_EQ(job[0]["attempts"], 1);  // a failure is not retried
+
+  const auto other = copy_run("reference_pump/run_ref_1", "P-102/run-1", "2026-11-21T09:30:00Z",
+                              [](RunRecording& run) { run.pump_id = "P-102"; });
+  ASSERT_TRUE(replay(other));
+  const auto r = put("/api/v1/pumps/P-101/reference", nlohmann::json{{"runs", {kRefRun, "P-102/run-1"}}}.dump());
+  ASSERT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(json_of(r)["error"].get<std::string>().find("P-102/run-1"), std::string::npos) << r->body;
+}
+
 TEST_F(ServiceTest, ASecondServerOnTheSameFileIsRefused) {
   start_service();
   Process second({AMBDIAG_CLI, "serve", "--db", db.string(), "--http-port", "0", "--domain", std::to_string(domain),
@@ -178,6 +207,9 @@ TEST_F(ServiceTest, ExplainRunsOnRequestAndItsModelCanBeAdopted) {
   const auto adopt = post("/api/v1/jobs/" + id + "/adopt");
   ASSERT_EQ(adopt->status, 200) << adopt->body;
   EXPECT_EQ(json_of(adopt)["model_version"], 2);
+  // The new version re-queues the pump's runs: the run's analysis moves to it.
+  const auto again = wait_analysis(kRefRun);
+  EXPECT_EQ(again["model_version"], 2) << again.dump();
   const auto models = json_of(get("/api/v1/pumps/P-101/models"))["models"];
   ASSERT_EQ(models.size(), 2u);
   EXPECT_NE(models[1]["comment"].get<std::string>().find("explain job " + id), std::string::npos);
