@@ -3,6 +3,7 @@
 // an agent analysed by the server, detection and diagnosis read back, a
 // kill -9 during an analysis, bad input refused with its reason.
 #include <csignal>
+#include <sstream>
 
 #include "ambdiag/core/io_util.h"
 #include "service_fixture.h"
@@ -165,6 +166,26 @@ TEST_F(ServiceTest, ABadRunFailsItsJobWithTheReasonAndTheNextGoesOn) {
   const auto r = put("/api/v1/pumps/P-101/reference", nlohmann::json{{"runs", {kRefRun, "P-102/run-1"}}}.dump());
   ASSERT_EQ(r->status, 400) << r->body;
   EXPECT_NE(json_of(r)["error"].get<std::string>().find("P-102/run-1"), std::string::npos) << r->body;
+}
+
+// Ingest first: the analysis workers (--workers 3 here) are the server's
+// only threads at SCHED_IDLE (policy 5, field 41 of /proc/PID/task/TID/stat),
+// so they get only the CPU that ingest and REST leave.
+TEST_F(ServiceTest, AnalysisWorkersRunAtIdlePriority) {
+  start_service({"--workers", "3"});
+  std::this_thread::sleep_for(500ms);  // the workers set their policy when they start
+  int idle = 0, threads = 0;
+  for (const auto& task : fs::directory_iterator("/proc/" + std::to_string(server->pid()) + "/task")) {
+    const std::string stat = read_file_bytes((task.path() / "stat").string());
+    std::istringstream fields(stat.substr(stat.rfind(')') + 2));
+    std::string field;
+    for (int k = 3; k <= 41 && fields >> field; ++k) {
+    }
+    ++threads;
+    idle += field == "5" ? 1 : 0;
+  }
+  EXPECT_EQ(idle, 3) << threads << " threads";
+  EXPECT_GT(threads, 3);
 }
 
 TEST_F(ServiceTest, ASecondServerOnTheSameFileIsRefused) {

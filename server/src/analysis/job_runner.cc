@@ -1,5 +1,8 @@
 #include "job_runner.h"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <chrono>
 #include <cstring>
 #include <ctime>
@@ -35,6 +38,33 @@ auto with_retries(F&& write) {
     }
   }
 }
+
+// Workers compute at SCHED_IDLE, but a write transaction holds SQLite's one
+// write lock: at idle priority a worker could be preempted inside it for as
+// long as ingest keeps the CPUs busy, and ingest's next commit would wait
+// for the lock (priority inversion). Writes therefore run at normal
+// priority; the scope restores the thread's policy after.
+class NormalPriorityScope {
+ public:
+  NormalPriorityScope() {
+    sched_param p{};
+    if (pthread_getschedparam(pthread_self(), &policy_, &p) == 0 && policy_ == SCHED_IDLE) {
+      const sched_param normal{};
+      raised_ = pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal) == 0;
+    }
+  }
+  ~NormalPriorityScope() {
+    if (!raised_) return;
+    const sched_param p{};
+    pthread_setschedparam(pthread_self(), policy_, &p);
+  }
+  NormalPriorityScope(const NormalPriorityScope&) = delete;
+  NormalPriorityScope& operator=(const NormalPriorityScope&) = delete;
+
+ private:
+  int policy_ = SCHED_OTHER;
+  bool raised_ = false;
+};
 
 double thread_cpu_s() {
   timespec ts{};
@@ -126,7 +156,10 @@ void JobRunner::run() {
 }
 
 bool JobRunner::run_one() {
-  const auto job = h_.claim_job(name_);
+  const auto job = [&] {
+    const NormalPriorityScope normal;
+    return h_.claim_job(name_);
+  }();
   if (!job) return false;
   execute(*job);
   return true;
@@ -143,6 +176,7 @@ void JobRunner::execute(const storage::Job& job) {
     if (share - last_share < 0.05 && now - last_report < std::chrono::seconds(1)) return;
     last_share = share;
     last_report = now;
+    const NormalPriorityScope normal;
     if (!h_.set_job_progress(job.job_id, job.attempts, share)) throw Abandoned{};
   };
   const std::string what = job.key.kind + " job " + std::to_string(job.job_id) +
@@ -184,13 +218,16 @@ void JobRunner::execute(const storage::Job& job) {
     }
     const double cpu = thread_cpu_s() - cpu0;
     out.result["cpu_s"] = cpu;
-    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, out.result.dump(), out.artifacts); });
+    const std::string result_text = out.result.dump();
+    const NormalPriorityScope normal;
+    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, result_text, out.artifacts); });
     if (!ok) summary = "result refused: the attempt no longer holds the job";
   } catch (const Abandoned&) {
     summary = "abandoned";
   } catch (const std::exception& e) {
     summary = std::string("failed: ") + e.what();
     try {
+      const NormalPriorityScope normal;
       with_retries([&] { return h_.fail_job(job.job_id, job.attempts, e.what()); });
     } catch (const std::exception& e2) {
       std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
