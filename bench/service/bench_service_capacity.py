@@ -12,7 +12,10 @@ are diagnosed) with real agents (`ambdiag-agent replay --fast`) and waits
 until every run is analysed. Prints the server's CPU (user + system, all
 threads: ingest, analysis, REST) per analysed run, the jobs' own CPU
 (healthy / with diagnosis), the latency from a run's end to its analysis,
-and the pumps one 2-core server could analyse at one run an hour."""
+and the pumps one 2-core server could analyse at one run an hour. Then
+the ingest check: 8 runs of pumps without a model streamed alone, and again
+while the workers chew a backlog (every run above re-queued by a new model
+version): the ingest rate with and without the backlog."""
 import json
 import os
 import re
@@ -128,6 +131,22 @@ def main():
         print(f"run end -> analysis done: median {statistics.median(lat):.1f} s, max {max(lat):.1f} s (queue included)")
         print(f"pumps at one run an hour on 2 cores: {2 * 3600 / per_run:.0f} (this mix), "
               f"{2 * 3600 / (per_run - statistics.mean(f) / 2 + statistics.mean(h) / 2) if f else 0:.0f} (all healthy)")
+
+        # Ingest first: streaming rate alone and beside an analysis backlog.
+        def ingest_rate(tag):
+            dirs = [copy(healthy, f"I-{tag}-{k}", f"I-{tag}-{k}/run") for k in range(8)]
+            t = time.time()
+            stream(dirs)
+            return 8 * os.path.getsize(os.path.join(healthy, "samples.f32")) / 1e6 / (time.time() - t)
+        alone = ingest_rate("a")
+        for p in pumps:
+            call("PUT", f"/api/v1/pumps/{p}/model", plant)  # version 2: every run queued again
+        time.sleep(0.5)
+        queued = len(call("GET", "/api/v1/jobs?status=queued")["jobs"]) + len(call("GET", "/api/v1/jobs?status=running")["jobs"])
+        beside = ingest_rate("b")
+        left = len(call("GET", "/api/v1/jobs?status=queued")["jobs"])
+        print(f"ingest (8 runs, 4 agents at a time): {alone:.0f} MB/s alone, {beside:.0f} MB/s beside a backlog of "
+              f"{queued} analysis jobs ({left} still queued after the streaming)")
     finally:
         srv.terminate()
         srv.wait()

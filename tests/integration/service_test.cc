@@ -83,6 +83,7 @@ TEST_F(ServiceTest, EveryRunIsAnalysedAndAReferenceAddsDetectionAndDiagnosis) {
   // References naming what is not a healthy run of this pump: 400 naming it.
   EXPECT_EQ(put("/api/v1/pumps/P-101/reference", R"({"runs": ["P-101/none"]})")->status, 400);
   EXPECT_EQ(put("/api/v1/pumps/P-101/reference", R"({"runs": "P-101/copy-1"})")->status, 400);
+  EXPECT_EQ(put("/api/v1/pumps/P-101/reference", R"({"runs": ["P-101/copy-1"]})")->status, 400);  // one run
   EXPECT_EQ(put("/api/v1/pumps/P-404/reference", R"({"runs": ["P-101/copy-1"]})")->status, 404);
 
   // The engineer's reference: a job learns it, every run is analysed again.

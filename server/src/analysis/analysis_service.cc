@@ -156,6 +156,9 @@ AnalysisService::ReferenceReply AnalysisService::put_reference(const std::string
   std::lock_guard lock(impl_->ctl_mu);
   auto& h = *impl_->ctl;
   if (!h.find_pump(pump_id) && !h.find_model(pump_id)) throw NotFoundError("no pump '" + pump_id + "'");
+  // The normal run-to-run scatter is learnt from the runs' differences.
+  if (run_ids.size() < 2)
+    throw InputError("reference: runs: " + std::to_string(run_ids.size()) + " run(s); at least 2 are needed to learn the normal scatter");
   const auto model = h.find_model(pump_id);
   if (!model) throw ConflictError("pump '" + pump_id + "' has no model: PUT /api/v1/pumps/{pump_id}/model first");
   const int version = h.put_reference(pump_id, run_ids, by);
