@@ -51,28 +51,6 @@ json fault_json(const FaultEstimate& f, const PlantModel& plant) {
   return j;
 }
 
-json operating_json(const OperatingTests& t) {
-  json nuisance = json::array();
-  for (const auto& n : t.nuisance)
-    nuisance.push_back(
-        {{"link", n.link}, {"log_factor", n.log_factor}, {"factor", std::exp(n.log_factor)}, {"sd", n.sd}, {"normal_sd", n.normal_sd}});
-  return {{"speed_rpm", t.speed_rpm},
-          {"alpha_each", t.alpha_each},
-          {"residual",
-           {{"statistic", t.residual_statistic},
-            {"threshold", t.residual_threshold},
-            {"dof", t.residual_dof},
-            {"p_value", t.residual_p_value},
-            {"detected", t.residual_detected}}},
-          {"drift",
-           {{"statistic", t.drift_statistic},
-            {"threshold", t.drift_threshold},
-            {"dof", t.drift_dof},
-            {"p_value", t.drift_p_value},
-            {"detected", t.drift_detected}}},
-          {"nuisance", nuisance}};
-}
-
 }  // namespace
 
 json diagnosis_to_json(const DiagnosisResult& r, const PlantModel& plant) {
@@ -94,8 +72,30 @@ json diagnosis_to_json(const DiagnosisResult& r, const PlantModel& plant) {
   }
   // Detection under operating conditions (operating_reference.h): the run's
   // speed, both tests and the seal drift fitted.
-  if (r.operating.used) out["operating"] = operating_json(r.operating);
+  if (r.operating.used) out["operating"] = operating_tests_to_json(r.operating);
   return out;
+}
+
+json operating_tests_to_json(const OperatingTests& t) {
+  json nuisance = json::array();
+  for (const auto& n : t.nuisance)
+    nuisance.push_back(
+        {{"link", n.link}, {"log_factor", n.log_factor}, {"factor", std::exp(n.log_factor)}, {"sd", n.sd}, {"normal_sd", n.normal_sd}});
+  return {{"speed_rpm", t.speed_rpm},
+          {"alpha_each", t.alpha_each},
+          {"residual",
+           {{"statistic", t.residual_statistic},
+            {"threshold", t.residual_threshold},
+            {"dof", t.residual_dof},
+            {"p_value", t.residual_p_value},
+            {"detected", t.residual_detected}}},
+          {"drift",
+           {{"statistic", t.drift_statistic},
+            {"threshold", t.drift_threshold},
+            {"dof", t.drift_dof},
+            {"p_value", t.drift_p_value},
+            {"detected", t.drift_detected}}},
+          {"nuisance", nuisance}};
 }
 
 }  // namespace ambdiag

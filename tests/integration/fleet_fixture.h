@@ -14,6 +14,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <set>
 #include <tuple>
@@ -31,6 +32,7 @@ struct PumpSpec {
   double speed_spread_pct = 0, seal_drift_pct = 0;
   int seed = 1;
   std::vector<std::string> faults;  // simulate's --fault specs
+  double seal_drift_link_pct = 0;
 };
 
 // The fault's parameter value from which the run must be detected and
@@ -53,7 +55,11 @@ struct RunOutcome {
   std::string fault;  // the active fault's name, "" when healthy
   double fault_value = 0;
   bool reference = false;
+  bool analysed_on_arrival = false;  // its only analysis was against the reference
+  int analysis_jobs = 0;
   nlohmann::json analysis;
+  std::string model;  // path of the pump's plant model
+  std::map<std::string, double> seal_factor;  // truth: link -> coefficient factor of the drift
 };
 
 class FleetTest : public ServiceTest {
@@ -66,13 +72,16 @@ class FleetTest : public ServiceTest {
     write_plant_file(second_model.string(), second_pump(read_plant_file(reference_model.string())));
   }
 
-  std::unique_ptr<Process> simulate(const PumpSpec& p) {
-    const fs::path cfg = write_scratch("agent_" + p.id + ".json", R"({
-      "schedule": {"identification_interval_s": 0.1, "monitoring_interval_s": 0, "runs": 0}})");
+  std::unique_ptr<Process> simulate(const PumpSpec& p, double interval_s) {
+    const fs::path cfg = write_scratch("agent_" + p.id + ".json", R"({"schedule": {"identification_interval_s": )" +
+                                                                   std::to_string(interval_s) +
+                                                                   R"(, "monitoring_interval_s": 0, "runs": 0}})");
     std::vector<std::string> argv = {AMBDIAG_AGENT, "simulate", "--model", p.model.string(), "--pump", p.id,
                                      "--config", cfg.string(), "--fast", "--runs", std::to_string(p.runs),
                                      "--speed-spread", std::to_string(p.speed_spread_pct),
-                                     "--seal-drift", std::to_string(p.seal_drift_pct), "--seed", std::to_string(p.seed),
+                                     "--seal-drift", std::to_string(p.seal_drift_pct),
+                                     "--seal-drift-link", std::to_string(p.seal_drift_link_pct),
+                                     "--seed", std::to_string(p.seed),
                                      "--domain", std::to_string(domain), "--partition", partition,
                                      "--spool-dir", (dir / ("spool_" + p.id)).string(), "--timeout", "120"};
     if (!p.faults.empty()) {
@@ -82,31 +91,55 @@ class FleetTest : public ServiceTest {
     return std::make_unique<Process>(argv, env, (dir / ("agent_" + p.id + ".log")).string());
   }
 
-  // Registers the models, streams every pump (agents in parallel, at most
-  // `parallel` at a time: each simulates on one core), sets each pump's
-  // proposed reference and returns every run's outcome against it.
-  std::vector<RunOutcome> run_fleet(const std::vector<PumpSpec>& pumps, size_t parallel) {
+  std::map<std::string, int> reference_version;
+  std::map<std::string, std::set<std::string>> reference_runs;
+
+  // The engineer's step: once the pump proposes its first three runs, they
+  // become its reference (PUT with the proposed runs). False while it has
+  // not proposed three yet.
+  bool set_proposed_reference(const std::string& pump_id) {
+    const auto pump = json_of(get("/api/v1/pumps/" + pump_id));
+    if (!pump.contains("reference") || pump["reference"]["status"] != "proposed" || pump["reference"]["runs"].size() < 3)
+      return false;
+    const auto runs = pump["reference"]["runs"];
+    for (const auto& r : runs) reference_runs[pump_id].insert(r.get<std::string>());
+    const auto ref = put("/api/v1/pumps/" + pump_id + "/reference", nlohmann::json{{"runs", runs}}.dump());
+    EXPECT_EQ(ref->status, 202) << ref->body;
+    reference_version[pump_id] = json_of(ref).value("reference_version", 1);
+    return true;
+  }
+
+  // Registers the models and streams every pump (at most `parallel` agents
+  // at a time: each simulates on one core), a run every `interval_s`; each
+  // pump's reference is set as soon as it proposes its first three runs,
+  // while its later runs are still streaming (so those are analysed on
+  // arrival against it, as on a real site; a run that arrives first is
+  // analysed again). Returns every run's outcome against the reference.
+  std::vector<RunOutcome> run_fleet(const std::vector<PumpSpec>& pumps, size_t parallel, double interval_s) {
     start_service();
     for (const auto& p : pumps) {
       const auto m = put("/api/v1/pumps/" + p.id + "/model", read_file_bytes(p.model.string()));
       EXPECT_EQ(m->status, 200) << m->body;
     }
     for (size_t first = 0; first < pumps.size(); first += parallel) {
-      std::vector<std::unique_ptr<Process>> agents;
-      for (size_t i = first; i < std::min(pumps.size(), first + parallel); ++i) agents.push_back(simulate(pumps[i]));
-      for (auto& a : agents) EXPECT_EQ(a->wait(600s), 0) << a->log() << "\n--- server ---\n" << server->log();
-    }
-    std::map<std::string, int> reference_version;
-    std::map<std::string, std::set<std::string>> reference_runs;
-    for (const auto& p : pumps) {
-      const auto pump = json_of(get("/api/v1/pumps/" + p.id));
-      EXPECT_EQ(pump["reference"]["status"], "proposed") << pump.dump();
-      const auto runs = pump["reference"]["runs"];
-      EXPECT_EQ(runs.size(), 3u) << pump.dump();
-      for (const auto& r : runs) reference_runs[p.id].insert(r.get<std::string>());
-      const auto ref = put("/api/v1/pumps/" + p.id + "/reference", nlohmann::json{{"runs", runs}}.dump());
-      EXPECT_EQ(ref->status, 202) << ref->body;
-      reference_version[p.id] = json_of(ref).value("reference_version", 1);
+      std::vector<std::pair<const PumpSpec*, std::unique_ptr<Process>>> agents;
+      for (size_t i = first; i < std::min(pumps.size(), first + parallel); ++i)
+        agents.emplace_back(&pumps[i], simulate(pumps[i], interval_s));
+      const auto deadline = std::chrono::steady_clock::now() + 900s;
+      for (bool busy = true; busy && std::chrono::steady_clock::now() < deadline;) {
+        busy = false;
+        for (auto& [p, a] : agents) {
+          busy = busy || a->running();
+          if (!reference_version.count(p->id)) set_proposed_reference(p->id);
+        }
+        std::this_thread::sleep_for(200ms);
+      }
+      for (auto& [p, a] : agents) {
+        EXPECT_EQ(a->wait(1s), 0) << a->log() << "\n--- server ---\n" << server->log();
+        if (!reference_version.count(p->id)) {
+          EXPECT_TRUE(set_proposed_reference(p->id)) << p->id;
+        }
+      }
     }
     std::vector<RunOutcome> out;
     for (const auto& p : pumps) {
@@ -118,16 +151,29 @@ class FleetTest : public ServiceTest {
         EXPECT_EQ(r["status"], "complete") << r.dump();
         RunOutcome o;
         o.pump = p.id;
+        o.model = p.model.string();
         o.run_id = r["run_id"];
         const auto header = json_of(get(run_url(o.run_id)))["header"];
         const auto& sim = header.at("simulation");
         o.run = sim.at("run");
         o.speed_rpm = sim.at("speed_rpm");
         o.seal_drift = sim.value("seal_drift", 0.0);
-        for (const auto& f : sim.value("faults", nlohmann::json::array()))
+        const nlohmann::json factors = sim.value("seal_factors", nlohmann::json::object());
+        for (const auto& [link, factor] : factors.items())
+          o.seal_factor[link] = factor.get<double>();
+        const nlohmann::json faults = sim.value("faults", nlohmann::json::array());
+        for (const auto& f : faults)
           if (f.value("active", false)) o.fault = f.at("name"), o.fault_value = f.at("value");
         o.reference = reference_runs[p.id].count(o.run_id) > 0;
         o.analysis = wait_analysis(o.run_id, 900s, reference_version[p.id]);
+        // Analysis jobs of the run: one when it arrived with the reference
+        // in place, two when it was analysed before and again against it.
+        int analyses = 0;
+        const auto jobs = json_of(get("/api/v1/jobs?run_id=" + server::url_encode_segment(o.run_id)));
+        for (const auto& j : jobs["jobs"])
+          analyses += j.value("kind", "") == "analysis" ? 1 : 0;
+        o.analysed_on_arrival = analyses == 1;
+        o.analysis_jobs = analyses;
         out.push_back(std::move(o));
       }
       EXPECT_EQ(identification, p.runs) << p.id;
@@ -136,18 +182,30 @@ class FleetTest : public ServiceTest {
     return out;
   }
 
+  // The link a simulated fault acts on: the simulator's (and the
+  // diagnosis's) first link of the fault's kind (fault_models.cc).
+  static std::string fault_link(const PlantModel& plant, const std::string& fault) {
+    const std::string kind = fault == "balance_piston_wear" ? "balance_piston" : fault == "impeller_seal_wear" ? "seal" : "";
+    for (const auto& l : plant.links)
+      if (!kind.empty() && l.kind == kind) return l.name;
+    return "";
+  }
+
   // The assertions of the issue, and a table of what the server concluded
   // (the evidence: printed, so a run's log shows the fleet).
   struct Counts {
     int healthy = 0, healthy_after_reference = 0, false_alarms = 0, faulty_clear = 0, detected_clear = 0,
-        right_first_fault = 0, interval_holds_truth = 0, faulty_small = 0, detected_small = 0;
+        right_first_fault = 0, interval_holds_truth = 0, faulty_small = 0, detected_small = 0, on_arrival = 0;
+    std::vector<double> seal_z;                // healthy runs: (fitted - true) log seal factor / its sd
+    std::vector<double> residual_p, drift_p;  // healthy runs past the reference
   };
   Counts check(const std::vector<RunOutcome>& runs) {
     Counts c;
-    std::printf("%-6s %3s %7s %7s %-22s %5s %6s %9s %9s  %s\n", "pump", "run", "rpm", "drift", "truth", "ref", "nrmse",
-                "T/thr", "p", "conclusion");
+    std::printf("%-6s %3s %7s %7s %-22s %5s %4s %6s %9s %9s  %s\n", "pump", "run", "rpm", "drift", "truth", "ref", "jobs",
+                "nrmse", "T/thr", "p", "conclusion");
     for (const auto& o : runs) {
       const auto& a = o.analysis;
+      c.on_arrival += o.analysed_on_arrival ? 1 : 0;
       EXPECT_EQ(a.value("status", ""), "done") << o.run_id << ": " << a.dump();
       const auto& d = a.contains("detection") ? a["detection"] : nlohmann::json();
       EXPECT_TRUE(d.is_object()) << o.run_id << ": no detection against the reference: " << a.dump();
@@ -157,11 +215,16 @@ class FleetTest : public ServiceTest {
       if (detected && a["diagnosis"].is_object() && !a["diagnosis"]["faults"].empty()) {
         first = a["diagnosis"]["faults"][0];
         conclusion += ": " + first.value("fault", "") + " " + first["parameters"].dump();
+        if (first.contains("location")) conclusion += " at " + first["location"].dump();
+        if (a["diagnosis"]["faults"].size() > 1)
+          conclusion += "; then " + a["diagnosis"]["faults"][1].value("fault", "") + " score " +
+                        std::to_string(a["diagnosis"]["faults"][1].value("score", 0.0)) + " (first " +
+                        std::to_string(first.value("score", 0.0)) + ")";
       }
       char truth[64] = "healthy";
       if (!o.fault.empty()) std::snprintf(truth, sizeof truth, "%s=%.3f", o.fault.c_str(), o.fault_value);
-      std::printf("%-6s %3d %7.1f %+7.4f %-22s %5s %6.3f %9.3f %9.2e  %s\n", o.pump.c_str(), o.run, o.speed_rpm,
-                  o.seal_drift, truth, o.reference ? "yes" : "", a.value("nrmse", 0.0),
+      std::printf("%-6s %3d %7.1f %+7.4f %-22s %5s %4d %6.3f %9.3f %9.2e  %s\n", o.pump.c_str(), o.run, o.speed_rpm,
+                  o.seal_drift, truth, o.reference ? "yes" : "", o.analysis_jobs, a.value("nrmse", 0.0),
                   d.is_object() ? d.value("ratio", 0.0) : 0.0, d.is_object() ? d.value("p_value", 1.0) : 1.0,
                   conclusion.c_str());
       if (o.fault.empty()) {
@@ -185,6 +248,11 @@ class FleetTest : public ServiceTest {
       EXPECT_EQ(first.value("fault", ""), o.fault) << o.run_id << ": " << a["diagnosis"].dump();
       if (first.value("fault", "") != o.fault) continue;
       c.right_first_fault++;
+      // ... at the right link (a second link of kind `seal` would be the
+      // same fault name elsewhere).
+      if (const std::string link = fault_link(read_plant_file(o.model), o.fault); !link.empty()) {
+        EXPECT_EQ(first["location"]["links"], nlohmann::json::array({link})) << o.run_id << ": " << first.dump();
+      }
       const std::string param = o.fault == "dry_run" ? "fluid_factor" : "clearance_factor";
       const auto ci = first["parameters"].value(param + "_ci95", nlohmann::json::array());
       EXPECT_EQ(ci.size(), 2u) << first.dump();
@@ -194,10 +262,33 @@ class FleetTest : public ServiceTest {
       EXPECT_TRUE(holds) << o.run_id << ": " << param << " 95 % interval " << ci.dump() << " misses the truth "
                          << o.fault_value << ": " << first.dump();
     }
+    // The seal drift the server fitted to each healthy run against the
+    // simulated truth, in the fit's own sd (the reference's mean drift is
+    // absorbed in b only to first order, hence reported, not asserted).
+    std::printf("%-6s %3s %-16s %9s %9s %8s %7s   residual p  drift p\n", "pump", "run", "link", "fitted", "truth", "sd",
+                "z");
+    for (const auto& o : runs) {
+      if (!o.fault.empty() || !o.analysis.contains("detection") || !o.analysis["detection"].contains("operating")) continue;
+      const auto& op = o.analysis["detection"]["operating"];
+      for (const auto& n : op["nuisance"]) {
+        const std::string link = n["link"];
+        const double truth = o.seal_factor.count(link) ? o.seal_factor.at(link) : 1.0;
+        const double z = (n["log_factor"].get<double>() - std::log(truth)) / n["sd"].get<double>();
+        c.seal_z.push_back(z);
+        std::printf("%-6s %3d %-16s %9.4f %9.4f %8.4f %+7.2f   %10.3e %8.3e\n", o.pump.c_str(), o.run, link.c_str(),
+                    n["factor"].get<double>(), truth, n["sd"].get<double>(), z, op["residual"]["p_value"].get<double>(),
+                    op["drift"]["p_value"].get<double>());
+      }
+      if (!o.reference) {
+        c.residual_p.push_back(op["residual"]["p_value"].get<double>());
+        c.drift_p.push_back(op["drift"]["p_value"].get<double>());
+      }
+    }
     std::printf("healthy runs %d (%d after the reference runs), false alarms %d; clearly faulty runs %d, detected %d, "
-                "right first fault %d, interval holds the truth %d; small faults %d, detected %d\n",
+                "right first fault %d, interval holds the truth %d; small faults %d, detected %d; runs analysed on arrival "
+                "against the reference %d\n",
                 c.healthy, c.healthy_after_reference, c.false_alarms, c.faulty_clear, c.detected_clear,
-                c.right_first_fault, c.interval_holds_truth, c.faulty_small, c.detected_small);
+                c.right_first_fault, c.interval_holds_truth, c.faulty_small, c.detected_small, c.on_arrival);
     return c;
   }
 };

@@ -131,6 +131,9 @@ JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const Op
                       {"ratio", d.threshold > 0 ? d.statistic / d.threshold : 0.0},
                       {"dof", d.dof},
                       {"p_value", d.p_value}};
+    // Both tests and the fitted seal factors of every run, not only of
+    // detected ones: how close a healthy run came, and its seal drift.
+    if (d.operating.used) r["detection"]["operating"] = operating_tests_to_json(d.operating);
     if (d.detected) {
       r["diagnosis"] = diagnosis_to_json(d, plant);
       out.artifacts.push_back(svg("diagnosis.svg", diagnosis_svg(d, frf)));
