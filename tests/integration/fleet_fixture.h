@@ -196,7 +196,7 @@ class FleetTest : public ServiceTest {
   struct Counts {
     int healthy = 0, healthy_after_reference = 0, false_alarms = 0, faulty_clear = 0, detected_clear = 0,
         right_first_fault = 0, interval_holds_truth = 0, faulty_small = 0, detected_small = 0, on_arrival = 0;
-    std::vector<double> seal_z;                // healthy runs: (fitted - true) log seal factor / its sd
+    std::vector<double> seal_z;                // healthy runs: fitted vs true seal drift in sd (offset removed)
     std::vector<double> residual_p, drift_p;  // healthy runs past the reference
   };
   Counts check(const std::vector<RunOutcome>& runs) {
@@ -263,27 +263,60 @@ class FleetTest : public ServiceTest {
                          << o.fault_value << ": " << first.dump();
     }
     // The seal drift the server fitted to each healthy run against the
-    // simulated truth, in the fit's own sd (the reference's mean drift is
-    // absorbed in b only to first order, hence reported, not asserted).
-    std::printf("%-6s %3s %-16s %9s %9s %8s %7s   residual p  drift p\n", "pump", "run", "link", "fitted", "truth", "sd",
-                "z");
+    // simulated truth. The absolute level is not identified: b (the model's
+    // error) and a common shift of the reference runs' factors are the same
+    // to first order (operating_reference.h), so each pump's fitted factors
+    // sit a constant offset (measured up to 1.9 %, i.e. 12 sd) from the
+    // truth. What is identified is a run's drift against the pump's other
+    // runs: that offset removed (mean over its n healthy runs), the error
+    // must be within its sd x sqrt(1 - 1/n): 5 sd, so ~100 link-runs pass
+    // unless the fitted drift is wrong, not by chance.
+    struct SealRow {
+      const RunOutcome* run;
+      std::string link;
+      double fitted, truth, sd, dlog;
+    };
+    std::vector<SealRow> rows;
+    std::map<std::pair<std::string, std::string>, std::pair<double, int>> offset;  // (pump, link) -> sum dlog, n
     for (const auto& o : runs) {
       if (!o.fault.empty() || !o.analysis.contains("detection") || !o.analysis["detection"].contains("operating")) continue;
       const auto& op = o.analysis["detection"]["operating"];
       for (const auto& n : op["nuisance"]) {
         const std::string link = n["link"];
         const double truth = o.seal_factor.count(link) ? o.seal_factor.at(link) : 1.0;
-        const double z = (n["log_factor"].get<double>() - std::log(truth)) / n["sd"].get<double>();
-        c.seal_z.push_back(z);
-        std::printf("%-6s %3d %-16s %9.4f %9.4f %8.4f %+7.2f   %10.3e %8.3e\n", o.pump.c_str(), o.run, link.c_str(),
-                    n["factor"].get<double>(), truth, n["sd"].get<double>(), z, op["residual"]["p_value"].get<double>(),
-                    op["drift"]["p_value"].get<double>());
+        const double dlog = n["log_factor"].get<double>() - std::log(truth);
+        rows.push_back({&o, link, n["factor"].get<double>(), truth, n["sd"].get<double>(), dlog});
+        auto& [sum, count] = offset[{o.pump, link}];
+        sum += dlog, ++count;
       }
       if (!o.reference) {
         c.residual_p.push_back(op["residual"]["p_value"].get<double>());
         c.drift_p.push_back(op["drift"]["p_value"].get<double>());
       }
     }
+    std::printf("%-6s %3s %-16s %9s %9s %8s %8s %7s   residual p  drift p\n", "pump", "run", "link", "fitted", "truth", "sd",
+                "offset", "z");
+    for (const auto& r : rows) {
+      const auto& [sum, count] = offset.at({r.run->pump, r.link});
+      const double mean = sum / count;
+      const double z = count > 1 ? (r.dlog - mean) / (r.sd * std::sqrt(1.0 - 1.0 / count)) : 0.0;
+      c.seal_z.push_back(z);
+      EXPECT_LT(std::fabs(z), 5.0) << r.run->run_id << " " << r.link << ": fitted factor " << r.fitted << ", truth "
+                                   << r.truth << ", the pump's offset " << mean;
+      const auto& op = r.run->analysis["detection"]["operating"];
+      std::printf("%-6s %3d %-16s %9.4f %9.4f %8.4f %+8.4f %+7.2f   %10.3e %8.3e\n", r.run->pump.c_str(), r.run->run,
+                  r.link.c_str(), r.fitted, r.truth, r.sd, mean, z, op["residual"]["p_value"].get<double>(),
+                  op["drift"]["p_value"].get<double>());
+    }
+    double max_z = 0;
+    for (double z : c.seal_z) max_z = std::max(max_z, std::fabs(z));
+    int residual_below_5pct = 0, drift_below_5pct = 0;
+    for (double p : c.residual_p) residual_below_5pct += p < 0.05 ? 1 : 0;
+    for (double p : c.drift_p) drift_below_5pct += p < 0.05 ? 1 : 0;
+    std::printf("seal drift: %zu link-runs, largest |z| %.2f; healthy runs past the reference: residual p < 0.05 in %d, "
+                "drift p < 0.05 in %d of %zu (%.2f expected each)\n",
+                c.seal_z.size(), max_z, residual_below_5pct, drift_below_5pct, c.residual_p.size(),
+                0.05 * static_cast<double>(c.residual_p.size()));
     std::printf("healthy runs %d (%d after the reference runs), false alarms %d; clearly faulty runs %d, detected %d, "
                 "right first fault %d, interval holds the truth %d; small faults %d, detected %d; runs analysed on arrival "
                 "against the reference %d\n",

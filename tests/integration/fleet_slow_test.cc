@@ -28,9 +28,10 @@ TEST_F(FleetTest, TwoMachinesHealthyAndFaultyPumps) {
   EXPECT_EQ(c.healthy, 4 * 6 + 3 * 4);
   EXPECT_EQ(c.faulty_clear, 8);  // R-3 runs 6, 7 (1.4, 1.6); S-3 and S-4 runs 5-7
   // The runs of a pump 8 s after its third arrive with the reference in
-  // place (it is set within a poll of 0.2 s of the proposal): at least
-  // runs 6.. of every pump, unless the machine is overloaded.
-  EXPECT_GE(c.on_arrival, 7 * 1);
+  // place (it is set within a poll of 0.2 s of the proposal; measured: all
+  // 24 runs 4..): at least runs 6.. of every pump, 4 x 1 + 3 x 2, unless
+  // the machine is badly overloaded.
+  EXPECT_GE(c.on_arrival, 10);
 }
 
 }  // namespace
