@@ -139,21 +139,66 @@ std::string run_name(const FrfData& run, size_t i) {
   return "reference run " + std::to_string(i + 1) + (id ? " (" + *id + ")" : "");
 }
 
-// Grid, entries and sigma columns of every run against the first.
-void check_runs(const std::vector<FrfData>& runs) {
+bool same_hz(double a, double b) { return std::fabs(a - b) <= 1e-9 * std::max(1.0, std::max(a, b)); }
+
+// Index of the line of `hz` (sorted) at f, or -1.
+long line_at(const std::vector<double>& hz, double f) {
+  const auto it = std::lower_bound(hz.begin(), hz.end(), f * (1.0 - 1e-9) - 1e-12);
+  return it != hz.end() && same_hz(*it, f) ? static_cast<long>(it - hz.begin()) : -1;
+}
+
+// Runs a and b on one excitation grid that each may have dropped lines of
+// (the estimators drop a line a speed harmonic falls on, and runs at other
+// speeds drop other lines): every line of a is either a line of b or at
+// least 0.9 x a's own line spacing there away from every line of b, i.e. a
+// gap of b. A line shifted off the grid (closer to one of b's than a's
+// spacing) is not that; "" when they agree, else what is wrong.
+std::string grid_mismatch(const std::vector<double>& a, const std::vector<double>& b) {
+  for (size_t l = 0; l < a.size(); ++l) {
+    const double f = a[l];
+    const auto it = std::lower_bound(b.begin(), b.end(), f);
+    double nearest = std::numeric_limits<double>::infinity(), at = f;
+    if (it != b.end() && std::fabs(*it - f) < nearest) nearest = std::fabs(*it - f), at = *it;
+    if (it != b.begin() && std::fabs(*(it - 1) - f) < nearest) nearest = std::fabs(*(it - 1) - f), at = *(it - 1);
+    if (same_hz(at, f)) continue;
+    double spacing = std::numeric_limits<double>::infinity();
+    if (l > 0) spacing = std::min(spacing, f - a[l - 1]);
+    if (l + 1 < a.size()) spacing = std::min(spacing, a[l + 1] - f);
+    if (nearest < 0.9 * spacing)
+      return "line " + std::to_string(l + 1) + " at " + std::to_string(f) + " Hz is off the grid, nearest line " +
+             std::to_string(at) + " Hz";
+  }
+  return "";
+}
+
+// Grid, entries and sigma columns of every run. The runs may lack a few
+// lines of their common grid (see grid_mismatch); the lines every run has
+// are returned, the grid the reference is learnt on. At least 90 % of each
+// run's lines must be on it: the few dropped lines, not another grid.
+std::vector<double> check_runs(const std::vector<FrfData>& runs) {
   if (runs.size() < 2)
     throw InputError("operating reference: " + std::to_string(runs.size()) + " reference run(s), at least 2 needed");
   const FrfData& first = runs.front();
+  for (size_t r = 0; r < runs.size(); ++r)
+    if (runs[r].freq_hz.empty()) throw InputError(run_name(runs[r], r) + ": no lines");
+  for (size_t r = 1; r < runs.size(); ++r)
+    for (size_t q = 0; q < r; ++q) {
+      std::string why = grid_mismatch(runs[r].freq_hz, runs[q].freq_hz);
+      if (why.empty()) why = grid_mismatch(runs[q].freq_hz, runs[r].freq_hz);
+      if (!why.empty()) throw InputError(run_name(runs[r], r) + ": not on the grid of run " + std::to_string(q + 1) + ": " + why);
+    }
+  std::vector<double> common;
+  for (double f : first.freq_hz) {
+    bool everywhere = true;
+    for (size_t r = 1; r < runs.size() && everywhere; ++r) everywhere = line_at(runs[r].freq_hz, f) >= 0;
+    if (everywhere) common.push_back(f);
+  }
   for (size_t r = 0; r < runs.size(); ++r) {
     const FrfData& run = runs[r];
     const std::string which = run_name(run, r);
-    if (run.freq_hz.empty()) throw InputError(which + ": no lines");
-    if (run.freq_hz.size() != first.freq_hz.size())
-      throw InputError(which + ": " + std::to_string(run.freq_hz.size()) + " lines, run 1 has " + std::to_string(first.freq_hz.size()));
-    for (size_t l = 0; l < first.freq_hz.size(); ++l)
-      if (std::fabs(run.freq_hz[l] - first.freq_hz[l]) > 1e-9 * std::max(1.0, first.freq_hz[l]))
-        throw InputError(which + ": line " + std::to_string(l + 1) + " at " + std::to_string(run.freq_hz[l]) + " Hz, run 1 at " +
-                         std::to_string(first.freq_hz[l]) + " Hz");
+    if (static_cast<double>(common.size()) < 0.9 * static_cast<double>(run.freq_hz.size()))
+      throw InputError(which + ": " + std::to_string(run.freq_hz.size()) + " lines, only " + std::to_string(common.size()) +
+                       " of them in every reference run");
     if (run.entries.size() != first.entries.size())
       throw InputError(which + ": " + std::to_string(run.entries.size()) + " entries, run 1 has " + std::to_string(first.entries.size()));
     for (const auto& e0 : first.entries) {
@@ -166,6 +211,26 @@ void check_runs(const std::vector<FrfData>& runs) {
           throw InputError(which + ": entry " + e0.output + "/" + e0.input + ": sigma must be finite and > 0");
     }
   }
+  return common;
+}
+
+// The run on the lines `hz` (each one of its lines, check_runs).
+FrfData on_lines(const FrfData& run, const std::vector<double>& hz) {
+  if (run.freq_hz.size() == hz.size()) return run;
+  FrfData out = run;
+  out.freq_hz = hz;
+  for (size_t e = 0; e < run.entries.size(); ++e) {
+    const FrfEntry& in = run.entries[e];
+    FrfEntry& o = out.entries[e];
+    o.h.clear(), o.sigma.clear(), o.coh.clear();
+    for (double f : hz) {
+      const auto l = static_cast<size_t>(line_at(run.freq_hz, f));
+      o.h.push_back(in.h[l]);
+      if (!in.sigma.empty()) o.sigma.push_back(in.sigma[l]);
+      if (!in.coh.empty()) o.coh.push_back(in.coh[l]);
+    }
+  }
+  return out;
 }
 
 // Normal spread of theta: a common drift of all links (sd_c) plus each
@@ -196,11 +261,16 @@ void learn_spread(const std::vector<Eigen::VectorXd>& theta, const Eigen::Vector
 
 }  // namespace
 
-OperatingReference learn_operating_reference(const PlantModel& plant, const std::vector<FrfData>& runs,
+OperatingReference learn_operating_reference(const PlantModel& plant, const std::vector<FrfData>& all_lines,
                                              const OperatingReferenceOptions& options) {
   std::string why;
   if (!options.is_valid(&why)) throw InputError("operating reference options: " + why);
-  check_runs(runs);
+  // Learnt on the lines every reference run has (runs at other speeds
+  // dropped other lines a speed harmonic fell on); a later run's lines
+  // between them get b interpolated (operating_detection.cc).
+  const std::vector<double> common = check_runs(all_lines);
+  std::vector<FrfData> runs;
+  for (const auto& r : all_lines) runs.push_back(on_lines(r, common));
   OperatingReference ref;
   ref.options = options;
   const std::vector<int> links = nuisance_links(plant);

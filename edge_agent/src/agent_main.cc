@@ -43,7 +43,7 @@ struct UsageError : std::runtime_error {
 
 const char* kUsage =
     "usage: ambdiag-agent replay RUN_DIR [--fast] [--domain D] [options]\n"
-    "       ambdiag-agent simulate --model PLANT.json --pump ID [--fault NAME ...] [--domain D] [options]\n"
+    "       ambdiag-agent simulate --model PLANT.json --pump ID [--fault NAME ...] [--fast] [--domain D] [options]\n"
     "       ambdiag-agent forward [--spool-dir DIR] [--domain D] [options]\n"
     "\n"
     "Streams runs over Cyclone DDS to `ambdiag serve`; exits 0 once every sample is\n"
@@ -53,7 +53,8 @@ const char* kUsage =
     "\n"
     "options:\n"
     "  --config FILE        agent configuration (JSON; see edge_agent/README.md)\n"
-    "  --fast               replay as fast as possible (default: paced at the sample rate)\n"
+    "  --fast               replay, simulate: stream as fast as possible (default: paced at\n"
+    "                       the sample rate, so a default simulated run of 30 s takes 30 s)\n"
     "  --domain D           DDS domain id (default 0 or the config's)\n"
     "  --partition NAME     DDS partition, one per site (default \"site\")\n"
     "  --pump ID            pump id (default: the recording's)\n"

@@ -361,6 +361,56 @@ TEST(OperatingReference, RunOnAnotherGridIsInterpolatedOrRefused) {
   }
 }
 
+// Runs at other speeds drop other lines (the multisine estimator drops the
+// line a speed harmonic falls on: at 1 Hz lines, 2950 rpm drops none, 3000
+// rpm drops 50, 100, ...): a reference of such runs is learnt on the lines
+// they all have, and a run with every line is tested against it. The old
+// code refused it ("1000 lines, run 1 has 997"), so the server's reference
+// job failed for every pump with speed spread (fleet test, issue 16).
+TEST(OperatingReference, ReferenceRunsThatDroppedDifferentLinesAreLearntOnTheirCommonLines) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16009);
+  auto without = [](FrfData f, std::vector<double> drop_hz) {
+    FrfData out = f;
+    out.freq_hz.clear();
+    for (auto& e : out.entries) e.h.clear(), e.sigma.clear(), e.coh.clear();
+    for (size_t l = 0; l < f.freq_hz.size(); ++l) {
+      bool dropped = false;
+      for (double d : drop_hz) dropped = dropped || std::fabs(f.freq_hz[l] - d) < 1e-6;
+      if (dropped) continue;
+      out.freq_hz.push_back(f.freq_hz[l]);
+      for (size_t e = 0; e < f.entries.size(); ++e) {
+        out.entries[e].h.push_back(f.entries[e].h[l]);
+        out.entries[e].sigma.push_back(f.entries[e].sigma[l]);
+        if (!f.entries[e].coh.empty()) out.entries[e].coh.push_back(f.entries[e].coh[l]);
+      }
+    }
+    return out;
+  };
+  const std::vector<std::vector<double>> dropped = {{50.0, 100.0, 150.0}, {49.0, 98.0}, {51.0, 102.0, 153.0}};
+  std::vector<FrfData> refs;
+  for (const auto& d : dropped) refs.push_back(without(testing::simulate_run(plant, like, 2950.0, rng), d));
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  EXPECT_EQ(ref.freq_hz.size(), like.freq_hz.size() - 8);
+  DiagnosisOptions opt;
+  opt.alpha = 1e-3;
+  const DiagnosisResult r = diagnose(plant, ref, testing::simulate_run(plant, like, 2950.0, rng), opt);
+  EXPECT_FALSE(r.detected) << "p " << r.p_value;
+  EXPECT_EQ(r.operating.residual_dof, 2 * static_cast<double>(like.freq_hz.size() * like.entries.size()) - 2)
+      << "the run is tested on all its lines";
+  // More than a few dropped lines is another grid, not dropped lines.
+  std::vector<double> many;
+  for (int i = 0; i < 150; ++i) many.push_back(5.0 + 3.0 * i);
+  refs[1] = without(refs[1], many);
+  try {
+    learn_operating_reference(plant, refs);
+    ADD_FAILURE() << "a run lacking 15 % of the lines was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("in every reference run"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OperatingReference, JsonRoundTripKeepsTheResult) {
   const PlantModel plant = reference_plant();
   const OperatingReference ref = learn_operating_reference(plant, shared_references(3));

@@ -142,8 +142,8 @@ JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const Op
                       {"ratio", d.threshold > 0 ? d.statistic / d.threshold : 0.0},
                       {"dof", d.dof},
                       {"p_value", d.p_value}};
-    // The run's seal drift against its normal spread: what trends watch
-    // before it becomes a fault.
+    // Both tests and the fitted seal factors of every run, not only of
+    // detected ones: how close a healthy run came, and its seal drift.
     if (d.operating.used) r["detection"]["operating"] = operating_tests_to_json(d.operating);
     if (d.detected) {
       r["diagnosis"] = diagnosis_to_json(d, plant);

@@ -11,6 +11,10 @@
 namespace ambdiag {
 
 nlohmann::json diagnosis_to_json(const DiagnosisResult& result, const PlantModel& plant);
+// The operating tests (DiagnosisResult::operating, when used): the run's
+// speed, residual and drift test, the fitted seal factors; also the server's
+// detection of every run, detected or not, so a healthy run shows its drift.
+nlohmann::json operating_tests_to_json(const OperatingTests& tests);
 
 // The tests of detection under operating conditions (operating_reference.h):
 // the run's speed, the residual and drift tests, and per fluid-seal link the

@@ -96,9 +96,11 @@ struct OperatingReference {
   const OperatingEntry* find(const std::string& output, const std::string& input) const;
 };
 
-// Throws InputError naming the run when runs disagree on grid or entries,
-// lack sigma columns, the model lacks a channel, or there are fewer than 2
-// runs. Cost: ~6 model FRFs per run and pass (~0.05 s CPU for three runs).
+// Learnt on the lines every run has (runs at other speeds drop other lines:
+// the line a speed harmonic falls on). Throws InputError naming the run when
+// runs are not on one grid (a line off it, or under 90 % of its lines
+// common to all), disagree on entries, lack sigma columns, the model lacks
+// a channel, or there are fewer than 2 runs. Cost: ~6 model FRFs per run and pass (~0.05 s CPU for three runs).
 OperatingReference learn_operating_reference(const PlantModel& plant, const std::vector<FrfData>& runs,
                                              const OperatingReferenceOptions& options = {});
 
