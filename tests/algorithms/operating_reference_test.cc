@@ -12,6 +12,7 @@
 #include "ambdiag/core/error.h"
 #include "diagnosis_support.h"
 #include "operating_support.h"
+#include "second_pump.h"
 #include "test_support.h"
 
 namespace ambdiag {
@@ -409,6 +410,78 @@ TEST(OperatingReference, ReferenceRunsThatDroppedDifferentLinesAreLearntOnTheirC
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("in every reference run"), std::string::npos) << e.what();
   }
+}
+
+// A big crack (EI x 0.5) on the fleet tests' second machine (longer,
+// thicker shaft, tests/support/second_pump.h): the screening's linearised
+// estimate ranks the cracked element only 4th to 6th behind its neighbours
+// (elements 3, 11, 13, 14 below, and the fleet test's crack at element 9,
+// which lost to the hub joint, shaft_nut_loosening, at 3 refined elements:
+// 8 of 21 EI-0.5 cracks misplaced with 3, 1 with 5, none with 6, for 10 %
+// more model evaluations). The default refines 6.
+TEST(OperatingReference, BigCrackOnTheSecondMachineIsPlacedAtItsElement) {
+  const PlantModel plant = testing::second_pump(reference_plant());
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16010);
+  Operation op;
+  op.nominal_rpm = plant.speed_rpm;
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::healthy_run(plant, like, op, rng));
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  const auto hyps = fault_hypotheses(plant);
+  for (int element : {3, 9, 11, 13, 14}) {
+    const FaultHypothesis* crack = nullptr;
+    for (const auto& h : hyps)
+      if (h.kind == FaultKind::rotor_crack && h.elements == std::vector<int>{element}) crack = &h;
+    ASSERT_NE(crack, nullptr);
+    DiagnosisOptions opt;
+    opt.alpha = kRecommendedAlphaPerRun;
+    const DiagnosisResult r = diagnose(plant, ref, testing::healthy_run(apply_fault(plant, *crack, 0.5), like, op, rng), opt);
+    ASSERT_TRUE(r.detected) << element;
+    ASSERT_FALSE(r.faults.empty());
+    const FaultEstimate& f = r.faults.front();
+    EXPECT_EQ(f.name, "rotor_crack") << element;
+    EXPECT_EQ(f.hypothesis.elements, std::vector<int>{element}) << f.name << " at " << f.hypothesis.elements.front();
+    // The interval holds the truth: the noise is the model's own (1 % of
+    // the RMS) and the crack's change is large, so a few times its sd.
+    EXPECT_LE(f.ci_lo, 0.5) << element;
+    EXPECT_GE(f.ci_hi, 0.5) << element;
+  }
+}
+
+// A sensor at gain 0.8 on a run with seal drift at another speed: the gain
+// is fitted jointly with the drift. Fitted on the prediction with the drift
+// fitted to the faulty run (which takes up part of the gain's change), it
+// came out 0.8012 +- 0.0003 in the fleet test (tests/integration), the
+// interval missing the truth by 4 sd.
+TEST(OperatingReference, SensorGainUnderSealDriftIsFittedWithTheDrift) {
+  const PlantModel plant = reference_plant();
+  const FrfData like = shared_like();
+  std::mt19937_64 rng(16011);
+  const Operation op;
+  std::vector<FrfData> refs;
+  for (int i = 0; i < 3; ++i) refs.push_back(testing::healthy_run(plant, like, op, rng));
+  const OperatingReference ref = learn_operating_reference(plant, refs);
+  int held = 0;
+  const int n = 6;
+  for (int i = 0; i < n; ++i) {
+    FrfData run = testing::simulate_run(testing::drifted(plant, SealDrift{0.03 * (i % 3 - 1), {}}), like, 2950.0 * (1.0 + 0.01 * (i - 2)), rng);
+    for (auto& e : run.entries)
+      if (e.output == "xAx")
+        for (auto& h : e.h) h *= 0.8;
+    DiagnosisOptions opt;
+    opt.alpha = kRecommendedAlphaPerRun;
+    const DiagnosisResult r = diagnose(plant, ref, run, opt);
+    ASSERT_TRUE(r.detected);
+    const FaultEstimate& f = r.faults.front();
+    EXPECT_EQ(f.name, "sensor_fault");
+    EXPECT_EQ(f.hypothesis.channel, "xAx");
+    std::printf("sensor gain 0.8, common drift %+.0f %%: %.5f [%.5f, %.5f]\n", 3.0 * (i % 3 - 1), f.value, f.ci_lo, f.ci_hi);
+    held += f.ci_lo <= 0.8 && 0.8 <= f.ci_hi ? 1 : 0;
+  }
+  // 95 % intervals: 6 of 6 hold the truth with probability 0.74, 5 or more
+  // 0.97; fewer is a biased estimate or a too narrow interval.
+  EXPECT_GE(held, n - 1);
 }
 
 TEST(OperatingReference, JsonRoundTripKeepsTheResult) {
