@@ -56,7 +56,7 @@ for p in P-201 P-202 P-203; do
 {"schedule": {"identification_interval_s": 1, "monitoring_interval_s": 600, "runs": $runs}}
 JSON
   "$agent" simulate --config "$out/agent_$p.json" --model "$plant" --pump "$p" --runs "$runs" \
-    --speed-spread 2 --seal-drift 1.5 --seed "${p#P-}" "${fault[@]}" \
+    --speed-spread 2 --seal-drift 1.5 --seed "${p#P-}" "${fault[@]}" --fast \
     --domain "$domain" --partition demo --spool-dir "$out/spool_$p" 2>"$out/agent_$p.log" &
   pids+=($!)
 done
