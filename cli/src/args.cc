@@ -58,4 +58,10 @@ void Args::expect_positional(size_t n, const std::string& what) const {
   if (positional_.size() > n) throw UsageError("unexpected argument \"" + positional_[n] + "\"");
 }
 
+std::string Args::required(const std::string& name, const std::string& value_name) const {
+  const auto v = option(name);
+  if (!v) throw UsageError("missing " + name + " " + value_name);
+  return *v;
+}
+
 }  // namespace ambdiag::cli

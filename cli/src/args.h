@@ -27,6 +27,8 @@ class Args {
   const std::vector<std::string>& positional() const { return positional_; }
   bool flag(const std::string& name) const { return flags_.count(name) > 0; }
   std::optional<std::string> option(const std::string& name) const;
+  // The option's value; throws UsageError "missing NAME VALUE_NAME" without it.
+  std::string required(const std::string& name, const std::string& value_name) const;
   std::vector<std::string> values(const std::string& name) const;  // repeated / multi-valued options
   // Numeric option; throws UsageError naming the option if not a number.
   std::optional<double> number(const std::string& name) const;

@@ -16,12 +16,6 @@ namespace ambdiag::cli {
 
 namespace {
 
-std::string db_option(const Args& args) {
-  const auto db = args.option("--db");
-  if (!db) throw UsageError("missing --db FILE");
-  return *db;
-}
-
 int run_db_import(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db", "--chunk-bytes"}, {"--json"});
   args.expect_positional(1, "RUN_DIR");
@@ -30,7 +24,7 @@ int run_db_import(const std::vector<std::string>& argv) {
     if (!(*n >= 4 && *n <= (64 << 20))) throw UsageError("--chunk-bytes: must be in 4..67108864");
     chunk_bytes = static_cast<std::size_t>(*n);
   }
-  auto h = storage::Historian::open(db_option(args));
+  auto h = storage::Historian::open(args.required("--db", "FILE"));
   const auto res = storage::import_recording(h, args.positional()[0], chunk_bytes);
   const std::string status = storage::to_string(res.end.status);
   if (args.flag("--json")) {
@@ -55,7 +49,7 @@ int run_db_export(const std::vector<std::string>& argv) {
   args.expect_positional(1, "RUN_ID");
   const auto out = args.option("-o");
   if (!out) throw UsageError("missing -o DIR");
-  auto h = storage::Historian::open(db_option(args), storage::Historian::Mode::read);
+  auto h = storage::Historian::open(args.required("--db", "FILE"), storage::Historian::Mode::read);
   storage::export_recording(h, args.positional()[0], *out, args.flag("--incomplete"));
   std::fprintf(stderr, "wrote %s\n", out->c_str());
   return kExitOk;
@@ -64,7 +58,7 @@ int run_db_export(const std::vector<std::string>& argv) {
 int run_db_list(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db"}, {"--json"});
   args.expect_positional(0, "nothing");
-  auto h = storage::Historian::open(db_option(args), storage::Historian::Mode::read);
+  auto h = storage::Historian::open(args.required("--db", "FILE"), storage::Historian::Mode::read);
   auto snap = h.snapshot();
   nlohmann::json pumps = nlohmann::json::array();
   for (const auto& p : h.list_pumps()) {

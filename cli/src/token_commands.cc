@@ -17,12 +17,6 @@ namespace ambdiag::cli {
 
 namespace {
 
-std::string db_option(const Args& args) {
-  const auto db = args.option("--db");
-  if (!db) throw UsageError("missing --db FILE");
-  return *db;
-}
-
 int run_token_add(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db", "--role", "--name"}, {"--json"});
   args.expect_positional(0, "nothing (the name goes in --name)");
@@ -32,7 +26,7 @@ int run_token_add(const std::vector<std::string>& argv) {
   if (!role_text) throw UsageError("missing --role viewer|operator|engineer|admin");
   const auto role = storage::role_from(*role_text);
   if (!role) throw UsageError("--role: '" + *role_text + "' is not viewer, operator, engineer or admin");
-  auto h = storage::Historian::open(db_option(args));
+  auto h = storage::Historian::open(args.required("--db", "FILE"));
   const std::string token = h.add_token(*name, *role);
   if (args.flag("--json")) {
     std::cout << nlohmann::json{{"name", *name}, {"role", storage::to_string(*role)}, {"token", token}}.dump(2)
@@ -49,7 +43,7 @@ int run_token_list(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db"}, {"--json"});
   args.expect_positional(0, "nothing");
   // A writer: creates the schema where missing, like add and revoke.
-  auto h = storage::Historian::open(db_option(args));
+  auto h = storage::Historian::open(args.required("--db", "FILE"));
   const auto tokens = h.list_tokens();
   if (args.flag("--json")) {
     nlohmann::json list = nlohmann::json::array();
@@ -71,7 +65,7 @@ int run_token_revoke(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db"}, {});
   args.expect_positional(1, "NAME");
   const std::string& name = args.positional()[0];
-  auto h = storage::Historian::open(db_option(args));
+  auto h = storage::Historian::open(args.required("--db", "FILE"));
   if (!h.revoke_token(name)) throw InputError("no active token named '" + name + "'");
   std::fprintf(stderr, "token '%s' revoked\n", name.c_str());
   return kExitOk;

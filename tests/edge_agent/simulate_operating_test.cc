@@ -18,25 +18,11 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/storage/historian.h"
+#include "simulate_support.h"
 #include "test_support.h"
 
 namespace ambdiag::agent {
 namespace {
-
-std::string model_path() { return ambdiag::testing::data_file("reference_pump/plant.json").string(); }
-
-double nrmse(const FrfData& a, const FrfData& b) {
-  double num = 0, den = 0;
-  for (const auto& e : a.entries) {
-    const FrfEntry* m = b.find(e.output, e.input);
-    EXPECT_NE(m, nullptr) << e.output << "/" << e.input;
-    if (!m) continue;
-    for (size_t k = 0; k < e.h.size(); ++k) num += std::norm(e.h[k] - m->h[k]), den += std::norm(m->h[k]);
-  }
-  return std::sqrt(num / den);
-}
-
-FrfData model_frf(const PlantModel& plant, const FrfData& at) { return synthesize_frf(plant, plant.speed_rpm, at.freq_hz); }
 
 // Short noise-free runs (2 Hz lines to 600 Hz, 1 settle + 1 measured period
 // of 0.5 s per segment): the estimate is the model's FRF to ~4e-6

@@ -18,26 +18,11 @@
 #include "ambdiag/algorithms/reference_statistics.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
+#include "simulate_support.h"
 #include "test_support.h"
 
 namespace ambdiag::agent {
 namespace {
-
-std::string model_path() { return ambdiag::testing::data_file("reference_pump/plant.json").string(); }
-
-// rms |H_a - H_b| / rms |H_b| over every entry and line.
-double nrmse(const FrfData& a, const FrfData& b) {
-  double num = 0, den = 0;
-  for (const auto& e : a.entries) {
-    const FrfEntry* m = b.find(e.output, e.input);
-    EXPECT_NE(m, nullptr) << e.output << "/" << e.input;
-    if (!m) continue;
-    for (size_t k = 0; k < e.h.size(); ++k) num += std::norm(e.h[k] - m->h[k]), den += std::norm(m->h[k]);
-  }
-  return std::sqrt(num / den);
-}
-
-FrfData model_frf(const PlantModel& plant, const FrfData& at) { return synthesize_frf(plant, plant.speed_rpm, at.freq_hz); }
 
 // Short runs: 2 Hz lines up to 600 Hz; with noise 2 settle + 2 measured
 // periods (0.5 s each), without 1 + 1 (the slowest closed-loop pole of the
