@@ -230,9 +230,17 @@ bool Historian::fail_job(std::int64_t job_id, int attempt, const std::string& er
   return true;
 }
 
-int Historian::requeue_running_jobs() {
+int Historian::requeue_running_jobs(int max_attempts) {
   impl_->require_writer("requeue_running_jobs");
   Transaction tx(impl_->db, Transaction::Kind::write);
+  // A job that was running at every one of max_attempts server deaths is
+  // likely what kills the server: it fails instead of being claimed again.
+  impl_->stmt("UPDATE jobs SET status = 'failed', finished_at = ?, worker = '', "
+              "error = 'gave up after ' || attempts || ' attempts: the server stopped during each' "
+              "WHERE status = 'running' AND attempts >= ?")
+      .bind(1, now_utc())
+      .bind(2, static_cast<std::int64_t>(std::max(1, max_attempts)))
+      .run();
   // attempts stays: the next claim is a new attempt, and the old one's
   // worker (if it still lives) is refused.
   impl_->stmt("UPDATE jobs SET status = 'queued', progress = 0, worker = '' WHERE status = 'running'").run();

@@ -212,6 +212,27 @@ TEST(HistorianJobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
   EXPECT_EQ(h.requeue_running_jobs(), 0);  // a done job is not requeued
 }
 
+// A job running at every one of three server deaths is likely what kills
+// the server: the third restart fails it, naming why, and the others go on.
+TEST(HistorianJobs, AJobRunningAtThreeServerDeathsFailsInsteadOfAFourthClaim) {
+  auto h = Historian::open(db_path());
+  const auto poison = enqueue(h, analysis("poison"));
+  for (int death = 1; death <= 3; ++death) {
+    const auto claimed = h.claim_job("server-" + std::to_string(death));
+    ASSERT_TRUE(claimed);
+    ASSERT_EQ(claimed->job_id, poison);
+    EXPECT_EQ(h.requeue_running_jobs(), death < 3 ? 1 : 0) << death;
+  }
+  const auto failed = h.find_job(poison);
+  EXPECT_EQ(failed->status, JobStatus::failed);
+  EXPECT_EQ(failed->attempts, 3);
+  ASSERT_TRUE(failed->error);
+  EXPECT_EQ(*failed->error, "gave up after 3 attempts: the server stopped during each");
+  EXPECT_TRUE(failed->finished_at);
+  const auto next = enqueue(h, analysis("next"));
+  EXPECT_EQ(h.claim_job("server-4")->job_id, next);
+}
+
 TEST(HistorianJobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
   auto h = Historian::open(db_path());
   const auto id = enqueue(h, analysis("r1"));

@@ -243,8 +243,10 @@ class Historian {
   bool finish_job(std::int64_t job_id, int attempt, const std::string& result_json,
                   const std::vector<JobArtifact>& artifacts = {});
   bool fail_job(std::int64_t job_id, int attempt, const std::string& error);
-  // Jobs left `running` (a server that died): `queued` again. Returns how many.
-  int requeue_running_jobs();
+  // Jobs left `running` (a server that died): `queued` again, or `failed`
+  // ("gave up after N attempts") once they have had max_attempts claims.
+  // Returns how many were queued again.
+  int requeue_running_jobs(int max_attempts = 3);
   // Queued jobs of the pump and kind whose model or reference version is
   // older than given: `cancelled` (superseded). Returns how many.
   int cancel_superseded_jobs(const std::string& pump_id, const std::string& kind, int model_version,
