@@ -112,6 +112,11 @@ TEST_F(ServiceTest, EveryRunIsAnalysedAndAReferenceAddsDetectionAndDiagnosis) {
   const auto job = json_of(get("/api/v1/jobs/" + std::to_string(json_of(ref)["job_id"].get<int>())));
   EXPECT_EQ(job["kind"], "reference");
   EXPECT_EQ(job["status"], "done");
+  // What was learnt: per run its seal factors and fit, the model's bias.
+  ASSERT_EQ(job["result"]["learnt"].size(), 2u) << job.dump();
+  EXPECT_EQ(job["result"]["learnt"][0]["seal_factors"].size(), 2u);
+  EXPECT_GT(job["result"]["model_bias_nrmse"].get<double>(), 0.0);
+  EXPECT_LT(job["result"]["model_bias_nrmse"].get<double>(), 0.5);
   // One analysis job per (run, model version, reference version).
   const auto jobs = json_of(get("/api/v1/jobs?run_id=" + server::url_encode_segment(kRefRun) + "&status=done"))["jobs"];
   EXPECT_EQ(jobs.size(), 2u) << jobs.dump();  // against (1, none) and (1, 1)

@@ -162,7 +162,36 @@ JobOutput learn_reference(const PlantModel& plant, const std::vector<FrfData>& f
   report(progress, 0.9);
   json speeds = json::array();
   for (const auto& f : frfs) speeds.push_back(f.speed_rpm ? json(*f.speed_rpm) : json(nullptr));
-  out.result = {{"runs", run_ids}, {"speeds_rpm", speeds}};
+  // What was learnt, for the engineer who chose the runs: each run's seal
+  // factors and how well model + bias reproduce it (chi2 per value, 1 at
+  // the noise), the normal spread used, and how far the model is from the
+  // runs (the bias b: NRMSE of b against the runs' mean |H|). A large bias
+  // is either an imperfect model or a pump that was not healthy when the
+  // runs were recorded: `explain` on a reference run tells which.
+  json runs = json::array();
+  for (const auto& run : ref.runs) {
+    json factors = json::object();
+    for (size_t k = 0; k < run.log_factor.size() && k < ref.nuisance_links.size(); ++k)
+      factors[ref.nuisance_links[k]] = std::exp(run.log_factor[k]);
+    runs.push_back({{"run_id", run.run_id},
+                    {"speed_rpm", run.speed_rpm},
+                    {"seal_factors", factors},
+                    {"chi2_per_value", run.values > 0 ? run.chi2 / run.values : 0.0}});
+  }
+  double bias2 = 0.0, h2 = 0.0;
+  for (const auto& e : ref.entries)
+    for (const auto& b : e.bias) bias2 += std::norm(b);
+  for (const auto& f : frfs)
+    for (const auto& e : f.entries)
+      for (const auto& h : e.h) h2 += std::norm(h) / static_cast<double>(frfs.size());
+  out.result = {{"runs", run_ids},
+                {"speeds_rpm", speeds},
+                {"learnt", runs},
+                {"common_sd", ref.common_sd},
+                {"link_sd", ref.link_sd},
+                {"common_sd_estimate", ref.common_sd_estimate},
+                {"link_sd_estimate", ref.link_sd_estimate},
+                {"model_bias_nrmse", h2 > 0 ? std::sqrt(bias2 / h2) : 0.0}};
   out.artifacts.push_back({"reference.json", "application/json", operating_reference_to_json(ref)});
   report(progress, 1.0);
   return out;
