@@ -40,30 +40,35 @@ struct AnalysisService::Impl {
 
   explicit Impl(AnalysisOptions o) : opt(std::move(o)) {}
 
-  // One analysis job for the run against the pump's current versions (and
+  // The pump's current versions: (model, reference; 0 for none). nullopt
+  // without a model: nothing of the pump is analysed.
+  std::optional<std::pair<int, int>> current_versions_locked(const std::string& pump_id) {
+    const auto model = ctl->find_model(pump_id);
+    if (!model) return std::nullopt;
+    const auto ref = ctl->find_reference(pump_id);
+    return std::pair{model->version, ref ? ref->version : 0};
+  }
+
+  // One analysis job for the run against the pump's versions (m, r) (and
   // the reference job it needs). Idempotent. Caller holds ctl_mu.
-  bool schedule_run_locked(const storage::RunInfo& run) {
+  bool schedule_run_locked(const storage::RunInfo& run, int m, int r) {
     if (run.status != storage::RunStatus::complete || run.kind != "identification") return false;
-    const auto model = ctl->find_model(run.pump_id);
-    if (!model) return false;
-    const auto ref = ctl->find_reference(run.pump_id);
-    const int r = ref ? ref->version : 0;
-    if (ctl->find_job(JobKey{"analysis", run.pump_id, run.run_id, model->version, r})) return false;
+    const JobKey key{"analysis", run.pump_id, run.run_id, m, r};
+    if (ctl->find_job(key)) return false;
     std::optional<std::int64_t> depends;
-    if (ref) depends = ctl->enqueue_job(JobKey{"reference", run.pump_id, "", model->version, r}).first;
-    return ctl->enqueue_job(JobKey{"analysis", run.pump_id, run.run_id, model->version, r}, "{}", depends).second;
+    if (r > 0) depends = ctl->enqueue_job(JobKey{"reference", run.pump_id, "", m, r}).first;
+    return ctl->enqueue_job(key, "{}", depends).second;
   }
 
   // Every run of the pump against its current versions; what older versions
   // still had queued is cancelled. Caller holds ctl_mu.
   int schedule_pump_locked(const std::string& pump_id) {
-    const auto model = ctl->find_model(pump_id);
-    if (!model) return 0;
-    const auto ref = ctl->find_reference(pump_id);
-    const int r = ref ? ref->version : 0;
-    for (const char* kind : {"analysis", "reference"}) ctl->cancel_superseded_jobs(pump_id, kind, model->version, r);
+    const auto v = current_versions_locked(pump_id);
+    if (!v) return 0;
+    const auto [m, r] = *v;
+    for (const char* kind : {"analysis", "reference"}) ctl->cancel_superseded_jobs(pump_id, kind, m, r);
     int n = 0;
-    for (const auto& run : ctl->list_runs(pump_id)) n += schedule_run_locked(run) ? 1 : 0;
+    for (const auto& run : ctl->list_runs(pump_id)) n += schedule_run_locked(run, m, r) ? 1 : 0;
     return n;
   }
 
@@ -79,7 +84,9 @@ struct AnalysisService::Impl {
       }
       try {
         std::lock_guard lock(ctl_mu);
-        if (const auto run = ctl->find_run(run_id); run && schedule_run_locked(*run)) work.notify();
+        const auto run = ctl->find_run(run_id);
+        const auto v = run ? current_versions_locked(run->pump_id) : std::nullopt;
+        if (v && schedule_run_locked(*run, v->first, v->second)) work.notify();
       } catch (const std::exception& e) {
         std::fprintf(stderr, "ambdiag serve: cannot queue the analysis of run %s: %s\n", run_id.c_str(), e.what());
       }
@@ -155,11 +162,11 @@ AnalysisService::ReferenceReply AnalysisService::put_reference(const std::string
                                                                const std::string& by) {
   std::lock_guard lock(impl_->ctl_mu);
   auto& h = *impl_->ctl;
-  if (!h.find_pump(pump_id) && !h.find_model(pump_id)) throw NotFoundError("no pump '" + pump_id + "'");
+  const auto model = h.find_model(pump_id);
+  if (!model && !h.find_pump(pump_id)) throw NotFoundError("no pump '" + pump_id + "'");
   // The normal run-to-run scatter is learnt from the runs' differences.
   if (run_ids.size() < 2)
     throw InputError("reference: runs: " + std::to_string(run_ids.size()) + " run(s); at least 2 are needed to learn the normal scatter");
-  const auto model = h.find_model(pump_id);
   if (!model) throw ConflictError("pump '" + pump_id + "' has no model: PUT /api/v1/pumps/{pump_id}/model first");
   const int version = h.put_reference(pump_id, run_ids, by);
   const auto job = h.enqueue_job(JobKey{"reference", pump_id, "", model->version, version}).first;

@@ -155,6 +155,16 @@ void JobRunner::run() {
   }
 }
 
+const OperatingReference& JobRunner::reference_of(std::int64_t reference_job) {
+  if (!cached_reference_ || cached_reference_->first != reference_job) {
+    cached_reference_.reset();
+    const auto art = h_.find_artifact(reference_job, "reference.json");
+    if (!art) throw InputError("reference job " + std::to_string(reference_job) + " kept no reference");
+    cached_reference_.emplace(reference_job, operating_reference_from_json(art->data));
+  }
+  return cached_reference_->second;
+}
+
 bool JobRunner::run_one() {
   const auto job = [&] {
     const NormalPriorityScope normal;
@@ -187,15 +197,13 @@ void JobRunner::execute(const storage::Job& job) {
     JobOutput out;
     const PlantModel plant = job_plant(h_, job);
     if (job.key.kind == "analysis") {
-      std::optional<OperatingReference> ref;
+      const OperatingReference* ref = nullptr;
       if (job.key.reference_version > 0) {
         if (!job.depends_on) throw InputError("no reference job for reference version " + std::to_string(job.key.reference_version));
-        const auto art = h_.find_artifact(*job.depends_on, "reference.json");
-        if (!art) throw InputError("reference job " + std::to_string(*job.depends_on) + " kept no reference");
-        ref = operating_reference_from_json(art->data);
+        ref = &reference_of(*job.depends_on);
       }
       const RunRecording run = load_run(h_, job.key.run_id);
-      out = analyse_run(plant, run, ref ? &*ref : nullptr, opt_.alpha, progress);
+      out = analyse_run(plant, run, ref, opt_.alpha, progress);
       const auto& d = out.result["detection"];
       summary = d.is_null() ? "no reference" : (d["detected"].get<bool>() ? "CHANGE DETECTED" : "no change");
       if (!out.result["diagnosis"].is_null() && !out.result["diagnosis"]["faults"].empty())

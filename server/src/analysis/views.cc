@@ -18,20 +18,30 @@ json parse_or_null(const std::optional<std::string>& text) {
 
 }  // namespace
 
-std::optional<storage::Job> current_analysis_job(storage::Historian& h, const storage::RunInfo& run) {
-  const auto model = h.find_model(run.pump_id);
-  if (!model) return std::nullopt;
-  const auto ref = h.find_reference(run.pump_id);
-  return h.find_job(storage::JobKey{"analysis", run.pump_id, run.run_id, model->version, ref ? ref->version : 0});
+namespace {
+
+// The analysis job of the run for the pump's versions (m, r).
+std::optional<storage::Job> analysis_job(storage::Historian& h, const storage::RunInfo& run, int m, int r) {
+  return h.find_job(storage::JobKey{"analysis", run.pump_id, run.run_id, m, r});
 }
 
-std::vector<std::string> proposed_reference(storage::Historian& h, const std::string& pump_id, int n) {
+// The first `n` complete identification runs of `runs` (oldest first).
+std::vector<std::string> proposed_reference(const std::vector<storage::RunInfo>& runs, int n) {
   std::vector<std::string> ids;
-  for (const auto& r : h.list_runs(pump_id)) {  // by started_at
+  for (const auto& r : runs) {
     if (static_cast<int>(ids.size()) >= n) break;
     if (r.status == storage::RunStatus::complete && r.kind == "identification") ids.push_back(r.run_id);
   }
   return ids;
+}
+
+}  // namespace
+
+std::optional<storage::Job> current_analysis_job(storage::Historian& h, const storage::RunInfo& run) {
+  const auto model = h.find_model(run.pump_id);
+  if (!model) return std::nullopt;
+  const auto ref = h.find_reference(run.pump_id);
+  return analysis_job(h, run, model->version, ref ? ref->version : 0);
 }
 
 std::optional<json> pump_view(storage::Historian& h, const std::string& pump_id, int proposed_reference_runs) {
@@ -39,12 +49,14 @@ std::optional<json> pump_view(storage::Historian& h, const std::string& pump_id,
   const auto summary = h.find_pump(pump_id);
   const auto model = h.find_model(pump_id);
   if (!summary && !model) return std::nullopt;
+  const auto ref = h.find_reference(pump_id);
+  const auto runs = h.list_runs(pump_id);  // by started_at
   json j = {{"pump_id", pump_id}, {"active_alarms", 0}, {"n_runs", summary ? summary->n_runs : 0}};
   if (model) j["model_version"] = model->version;
-  if (const auto ref = h.find_reference(pump_id)) {
+  if (ref) {
     j["reference"] = {{"runs", ref->run_ids}, {"status", "active"}, {"version", ref->version}, {"created_at", ref->created_at},
                       {"created_by", ref->created_by}};
-  } else if (auto ids = proposed_reference(h, pump_id, proposed_reference_runs);
+  } else if (auto ids = proposed_reference(runs, proposed_reference_runs);
              static_cast<int>(ids.size()) >= proposed_reference_runs && proposed_reference_runs > 0) {
     j["reference"] = {{"runs", ids}, {"status", "proposed"}};
   }
@@ -52,9 +64,8 @@ std::optional<json> pump_view(storage::Historian& h, const std::string& pump_id,
   // unknown without a model, a reference or a finished analysis.
   std::string health = "unknown";
   if (summary && !summary->last_run_id.empty()) j["last_run_id"] = summary->last_run_id;
-  const auto runs = h.list_runs(pump_id);
-  for (auto it = runs.rbegin(); it != runs.rend(); ++it) {
-    const auto job = current_analysis_job(h, *it);
+  for (auto it = runs.rbegin(); model && it != runs.rend(); ++it) {
+    const auto job = analysis_job(h, *it, model->version, ref ? ref->version : 0);
     if (!job || job->status != JobStatus::done) continue;
     const json result = parse_or_null(job->result_json);
     json last = {{"run_id", it->run_id}, {"job_id", job->job_id}, {"finished_at", job->finished_at.value_or("")}};

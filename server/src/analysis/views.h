@@ -30,7 +30,4 @@ std::optional<nlohmann::json> analysis_view(storage::Historian& h, const std::st
 // rest.md's job (with "result" parsed, when done).
 nlohmann::json job_json(const storage::Job& j, bool with_result);
 
-// The first `n` complete identification runs of the pump, oldest first.
-std::vector<std::string> proposed_reference(storage::Historian& h, const std::string& pump_id, int n);
-
 }  // namespace ambdiag::server::detail
