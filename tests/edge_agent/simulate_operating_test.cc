@@ -24,32 +24,10 @@
 namespace ambdiag::agent {
 namespace {
 
-// Short noise-free runs (2 Hz lines to 600 Hz, 1 settle + 1 measured period
-// of 0.5 s per segment): the estimate is the model's FRF to ~4e-6
-// (simulate_test.cc), so a few % change of the pump stands far above it.
-SimulationOptions small() {
-  SimulationOptions o;
-  o.pump_id = "SIM-1";
-  o.period_samples = 1024;
-  o.f_min_hz = 2;
-  o.f_max_hz = 600;
-  o.settle_periods = 1;
-  o.meas_periods = 1;
-  o.loop.displacement_noise_m = 0;
-  o.loop.current_noise_a = 0;
-  o.unbalance_grade_mm_per_s = 0;
-  return o;
-}
-
-double reported(const char* what, double v) {
-  std::cout << "[ value    ] " << what << " = " << v << "\n";
-  return v;
-}
-
 bool is_seal(const Link& l) { return l.kind == "seal" || l.kind == "balance_piston"; }
 
 TEST(OperatingVariability, SpeedSpreadGivesEachRunItsOwnSpeedAndThePlantAtIt) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.speed_spread_pct = 5;
   PumpSimulator sim(model_path(), o);
   const double model_rpm = 2950.0;
@@ -104,7 +82,7 @@ TEST(OperatingVariability, SpeedSpreadGivesEachRunItsOwnSpeedAndThePlantAtIt) {
 }
 
 TEST(OperatingVariability, SealDriftScalesEverySealCoefficientByTheRunsFactor) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.seal_drift_pct = 5;
   o.seal_drift_link_pct = 1;
   PumpSimulator sim(model_path(), o);
@@ -157,7 +135,7 @@ TEST(OperatingVariability, SealDriftScalesEverySealCoefficientByTheRunsFactor) {
 // balance_piston_wear=1.6@run2: run 1 is the healthy simulator's run to the
 // last bit (same loop, same noise), run 2 is the worn pump's.
 TEST(DevelopingFault, OnsetAppliesTheValueFromTheStatedRun) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.loop.displacement_noise_m = 0.05e-6;  // noise too: run 1 must share it
   PumpSimulator healthy(model_path(), o);
   o.faults = {"balance_piston_wear=1.6@run2"};
@@ -171,7 +149,7 @@ TEST(DevelopingFault, OnsetAppliesTheValueFromTheStatedRun) {
   EXPECT_EQ(j1.at("active"), false);
 
   // Noise free, so the FRF of run 2 can be held to the worn model's.
-  SimulationOptions q = small();
+  SimulationOptions q = small(false);
   q.faults = {"balance_piston_wear=1.6@run2"};
   PumpSimulator sim2(model_path(), q);
   sim2.identification_run();
@@ -190,7 +168,7 @@ TEST(DevelopingFault, OnsetAppliesTheValueFromTheStatedRun) {
 }
 
 TEST(DevelopingFault, RampIsLinearFromTheFirstToTheLastRun) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.runs = 5;
   o.faults = {"impeller_seal_wear=1..2", "balance_piston_wear=1.2..1.6@run3..5", "sensor_fault@run3",
               "actuator_fault=0.5..0.9@run2"};
@@ -220,7 +198,7 @@ TEST(DevelopingFault, RampIsLinearFromTheFirstToTheLastRun) {
 // (no renamed materials, no gain vectors), and the runs are bit for bit the
 // healthy simulator's.
 TEST(DevelopingFault, HealthyValueIsExactlyTheHealthyPump) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.loop.displacement_noise_m = 0.05e-6;
   o.loop.current_noise_a = 2e-3;
   o.runs = 2;
@@ -255,7 +233,7 @@ TEST(DevelopingFault, RefusesMalformedSchedulesNamingThem) {
   EXPECT_EQ(f.from_run, 5);
   EXPECT_EQ(f.to_run, 9);
   // Known only against the plant or the run count: the simulator refuses.
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.faults = {"impeller_seal_wear=1..2"};  // a ramp with no last run
   EXPECT_THROW(PumpSimulator(model_path(), o), InputError);
   o.runs = 3;
@@ -272,7 +250,7 @@ TEST(DevelopingFault, RefusesMalformedSchedulesNamingThem) {
 // parser (storage::run_header_from_json) accepts it and keeps the text as
 // sent; a recording written and read back keeps it too.
 TEST(OperatingVariability, RunJsonCarriesTheTruthAndTheServerKeepsIt) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.speed_spread_pct = 3;
   o.seal_drift_pct = 4;
   o.faults = {"impeller_seal_wear=1.5@run1"};
@@ -294,7 +272,7 @@ TEST(OperatingVariability, RunJsonCarriesTheTruthAndTheServerKeepsIt) {
 // Snapshots of a second simulator (its own noise seed, the runs' operating
 // seed) show the pump of the run it is told to follow.
 TEST(OperatingVariability, SnapshotsFollowTheRunsPump) {
-  SimulationOptions o = small();
+  SimulationOptions o = small(false);
   o.speed_spread_pct = 5;
   o.monitoring_s = 0.1;
   PumpSimulator runs(model_path(), o);

@@ -24,32 +24,6 @@
 namespace ambdiag::agent {
 namespace {
 
-// Short runs: 2 Hz lines up to 600 Hz; with noise 2 settle + 2 measured
-// periods (0.5 s each), without 1 + 1 (the slowest closed-loop pole of the
-// reference pump decays in 12 ms).
-SimulationOptions small(bool noise) {
-  SimulationOptions o;
-  o.pump_id = "SIM-1";
-  o.sample_rate_hz = 2048;
-  o.period_samples = 1024;
-  o.f_min_hz = 2;
-  o.f_max_hz = 600;
-  o.meas_periods = 2;
-  if (!noise) {
-    o.settle_periods = 1;
-    o.meas_periods = 1;
-    o.loop.displacement_noise_m = 0;
-    o.loop.current_noise_a = 0;
-    o.unbalance_grade_mm_per_s = 0;
-  }
-  return o;
-}
-
-double reported(const char* what, double v) {
-  std::cout << "[ value    ] " << what << " = " << v << "\n";
-  return v;
-}
-
 TEST(PumpSimulator, NoiseFreeClosedLoopRunCarriesTheModelFrf) {
   PumpSimulator sim(model_path(), small(false));
   const RunRecording run = sim.identification_run();

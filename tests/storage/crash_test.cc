@@ -2,7 +2,6 @@
 // leaves a database that opens consistent, with none of the half batch.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <sqlite3.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -11,6 +10,8 @@
 
 #include "ambdiag/storage/historian.h"
 #include "historian_fixture.h"
+#include "crash_child.h"
+#include "sqlite_raw.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -19,27 +20,6 @@ namespace {
 using ambdiag::testing::as_string;
 using ambdiag::testing::checksum_of;
 using ambdiag::testing::cut_chunks;
-
-int g_report_fd = -1;
-
-// The child's SIGSEGV handler: SQLite touched the guard page, i.e. it is in
-// the middle of the batch's INSERTs. Tell the parent and wait to be killed.
-void on_guard_page(int) {
-  const char c = 'T';
-  [[maybe_unused]] auto n = ::write(g_report_fd, &c, 1);
-  for (;;) ::pause();
-}
-
-std::string integrity_check(const std::string& path) {
-  sqlite3* db = nullptr;
-  sqlite3_open(path.c_str(), &db);
-  sqlite3_stmt* s = nullptr;
-  sqlite3_prepare_v2(db, "PRAGMA integrity_check", -1, &s, nullptr);
-  std::string r = sqlite3_step(s) == SQLITE_ROW ? reinterpret_cast<const char*>(sqlite3_column_text(s, 0)) : "?";
-  sqlite3_finalize(s);
-  sqlite3_close(db);
-  return r;
-}
 
 TEST(HistorianCrash, KilledInTheMiddleOfABatchLeavesNoHalfBatch) {
   const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
@@ -56,7 +36,6 @@ TEST(HistorianCrash, KilledInTheMiddleOfABatchLeavesNoHalfBatch) {
   ASSERT_GE(child, 0);
   if (child == 0) {
     ::close(fds[0]);
-    g_report_fd = fds[1];
     auto h = Historian::open(path);
     h.begin_run(header);
     h.put_chunks(header.run_id, std::span(chunks).subspan(0, kCommitted));
@@ -66,9 +45,7 @@ TEST(HistorianCrash, KilledInTheMiddleOfABatchLeavesNoHalfBatch) {
     void* guard = ::mmap(nullptr, static_cast<size_t>(page) * 8, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     std::vector<Chunk> batch(chunks.begin() + kCommitted, chunks.end());
     batch[249].bytes = {static_cast<const std::uint8_t*>(guard), batch[249].bytes.size()};
-    struct sigaction sa {};
-    sa.sa_handler = on_guard_page;
-    ::sigaction(SIGSEGV, &sa, nullptr);
+    crash::report_guard_page_faults(fds[1]);
     h.put_chunks(header.run_id, batch);
     ::_exit(3);  // not reached: the guard page faults first
   }
@@ -84,7 +61,7 @@ TEST(HistorianCrash, KilledInTheMiddleOfABatchLeavesNoHalfBatch) {
 
   // Opens (recovering the WAL), consistent, with exactly the first batch.
   auto h = Historian::open(path);
-  EXPECT_EQ(integrity_check(path), "ok");
+  EXPECT_EQ(raw_integrity_check(path), "ok");
   const auto info = h.find_run(header.run_id);
   ASSERT_TRUE(info);
   EXPECT_EQ(info->received_chunks, static_cast<std::int64_t>(kCommitted));

@@ -2,7 +2,6 @@
 // leaves each job done with all its files, or still running with none.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <sqlite3.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -11,32 +10,12 @@
 #include <string>
 
 #include "ambdiag/storage/historian.h"
+#include "crash_child.h"
+#include "sqlite_raw.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
 namespace {
-
-int g_report_fd = -1;
-
-// The child's SIGSEGV handler: SQLite read the guarded page, i.e. it is
-// copying a file into the open finish_job transaction. Tell the parent and
-// wait to be killed.
-void on_guard_page(int) {
-  const char c = 'T';
-  [[maybe_unused]] auto n = ::write(g_report_fd, &c, 1);
-  for (;;) ::pause();
-}
-
-std::string integrity_check(const std::string& path) {
-  sqlite3* db = nullptr;
-  sqlite3_open(path.c_str(), &db);
-  sqlite3_stmt* s = nullptr;
-  sqlite3_prepare_v2(db, "PRAGMA integrity_check", -1, &s, nullptr);
-  std::string r = sqlite3_step(s) == SQLITE_ROW ? reinterpret_cast<const char*>(sqlite3_column_text(s, 0)) : "?";
-  sqlite3_finalize(s);
-  sqlite3_close(db);
-  return r;
-}
 
 std::string result_of(std::int64_t id) { return R"({"job": )" + std::to_string(id) + "}"; }
 
@@ -97,7 +76,6 @@ TEST(HistorianJobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOr
   ASSERT_GE(child, 0);
   if (child == 0) {
     ::close(fds[0]);
-    g_report_fd = fds[1];
     auto h = Historian::open(path);
     for (int i = 0; i < kFinished; ++i) {
       const auto j = h.claim_job("child");
@@ -109,9 +87,7 @@ TEST(HistorianJobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOr
     auto files = files_of(j->job_id);
     const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
     const auto mid = (reinterpret_cast<std::uintptr_t>(files[1].data.data()) + files[1].data.size() / 2) & ~(page - 1);
-    struct sigaction sa {};
-    sa.sa_handler = on_guard_page;
-    ::sigaction(SIGSEGV, &sa, nullptr);
+    crash::report_guard_page_faults(fds[1]);
     ::mprotect(reinterpret_cast<void*>(mid), page, PROT_NONE);
     h.finish_job(j->job_id, j->attempts, result_of(j->job_id), files);
     ::_exit(3);  // not reached
@@ -120,7 +96,7 @@ TEST(HistorianJobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOr
   EXPECT_EQ(kill_child_after_report(child, fds[0]), 'T');
 
   auto h = Historian::open(path);
-  EXPECT_EQ(integrity_check(path), "ok");
+  EXPECT_EQ(raw_integrity_check(path), "ok");
   EXPECT_EQ(check_each_job_all_or_nothing(h), kFinished);
   JobFilter running;
   running.status = JobStatus::running;
@@ -176,7 +152,7 @@ TEST(HistorianJobsCrash, KilledAtAnyTimeInALoopOfFinishesEveryJobIsAllOrNothing)
     ASSERT_TRUE(WIFSIGNALED(status)) << "the child finished all jobs before it was killed";
 
     auto h = Historian::open(path);
-    EXPECT_EQ(integrity_check(path), "ok");
+    EXPECT_EQ(raw_integrity_check(path), "ok");
     const int done = check_each_job_all_or_nothing(h);
     EXPECT_GE(done, total_done + 20);
     EXPECT_LE(h.count_jobs(JobStatus::running), 1);

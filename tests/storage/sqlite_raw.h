@@ -23,6 +23,18 @@ inline std::int64_t raw_query_int(const std::string& path, const char* sql) {
   return v;
 }
 
+// `PRAGMA integrity_check` of the file: "ok" when it is consistent.
+inline std::string raw_integrity_check(const std::string& path) {
+  sqlite3* db = nullptr;
+  sqlite3_open(path.c_str(), &db);
+  sqlite3_stmt* s = nullptr;
+  sqlite3_prepare_v2(db, "PRAGMA integrity_check", -1, &s, nullptr);
+  std::string r = sqlite3_step(s) == SQLITE_ROW ? reinterpret_cast<const char*>(sqlite3_column_text(s, 0)) : "?";
+  sqlite3_finalize(s);
+  sqlite3_close(db);
+  return r;
+}
+
 inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
