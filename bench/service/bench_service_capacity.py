@@ -18,14 +18,13 @@ while the workers chew a backlog (every run above re-queued by a new model
 version): the ingest rate with and without the backlog."""
 import json
 import os
-import re
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 import urllib.parse
-import urllib.request
+
+from bench_server import BenchServer
 
 TICK = os.sysconf("SC_CLK_TCK")
 
@@ -39,30 +38,9 @@ def main():
     build, data = sys.argv[1], sys.argv[2]
     n_pumps = int(sys.argv[3]) if len(sys.argv) > 3 else 4
     n_runs = int(sys.argv[4]) if len(sys.argv) > 4 else 4
-    cli, agent = os.path.join(build, "cli", "ambdiag"), os.path.join(build, "edge_agent", "ambdiag-agent")
-    tmp = tempfile.mkdtemp(prefix="bench_capacity_")
-    db = os.path.join(tmp, "h.db")
-    token = json.loads(subprocess.check_output([cli, "token", "add", "--db", db, "--role", "engineer", "--name", "b", "--json"]))["token"]
-    env = dict(os.environ, CYCLONEDDS_URI="file://" + os.path.abspath(os.path.join(os.path.dirname(__file__), "../../deploy/cyclonedds/local.xml")))
-    log = open(os.path.join(tmp, "server.log"), "w+")
-    domain, part = "43", "capacity"
-    srv = subprocess.Popen([cli, "serve", "--db", db, "--http-port", "0", "--domain", domain, "--partition", part, "--workers", "2"],
-                           stderr=log, env=env)
-    port = None
-    for _ in range(100):
-        log.seek(0)
-        m = re.search(r"REST on port (\d+)", log.read())
-        if m:
-            port = int(m.group(1))
-            break
-        time.sleep(0.1)
-    url = f"http://127.0.0.1:{port}"
-
-    def call(method, path, body=None):
-        req = urllib.request.Request(url + path, data=None if body is None else body.encode(), method=method,
-                                     headers={"Authorization": "Bearer " + token})
-        with urllib.request.urlopen(req, timeout=60) as r:
-            return json.loads(r.read())
+    agent = os.path.join(build, "edge_agent", "ambdiag-agent")
+    srv = BenchServer(build, "bench_capacity_", "43", "capacity", ["--workers", "2"])
+    tmp, env, domain, part, call = srv.tmp, srv.env, srv.domain, srv.partition, srv.call
 
     def copy(src, pump, run_id):
         d = os.path.join(tmp, "runs", run_id.replace("/", "_"))
@@ -110,10 +88,10 @@ def main():
         wait_done([r for p in pumps for r in refs[p]], 1)
 
         runs = [(p, f"{p}/run-{k}", dry if k % 2 else healthy) for k in range(n_runs) for p in pumps]
-        cpu0, t0 = cpu_s(srv.pid), time.time()
+        cpu0, t0 = cpu_s(srv.proc.pid), time.time()
         stream([copy(src, p, r) for p, r, src in runs])
         wait_done([r for _, r, _ in runs], 1)
-        wall, cpu = time.time() - t0, cpu_s(srv.pid) - cpu0
+        wall, cpu = time.time() - t0, cpu_s(srv.proc.pid) - cpu0
         jobs = [call("GET", f"/api/v1/jobs?run_id={urllib.parse.quote(r, safe='')}&status=done&kind=analysis")["jobs"] for _, r, _ in runs]
         detail = [call("GET", f"/api/v1/jobs/{j[0]['job_id']}") for j in jobs]
         h = [d["result"]["cpu_s"] for d in detail if not d["result"]["detection"]["detected"]]
@@ -148,8 +126,7 @@ def main():
         print(f"ingest (8 runs, 4 agents at a time): {alone:.0f} MB/s alone, {beside:.0f} MB/s beside a backlog of "
               f"{queued} analysis jobs ({left} still queued after the streaming)")
     finally:
-        srv.terminate()
-        srv.wait()
+        srv.stop()
 
 
 if __name__ == "__main__":
