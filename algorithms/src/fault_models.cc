@@ -51,6 +51,13 @@ void scale_link(Link& link, double factor) {
       if (v) *v *= factor;
 }
 
+std::vector<int> fluid_seal_links(const PlantModel& plant) {
+  std::vector<int> out;
+  for (size_t i = 0; i < plant.links.size(); ++i)
+    if (plant.links[i].kind == "seal" || plant.links[i].kind == "balance_piston") out.push_back(static_cast<int>(i));
+  return out;
+}
+
 std::vector<FaultHypothesis> fault_hypotheses(const PlantModel& plant) {
   std::vector<FaultHypothesis> out;
   std::vector<int> seals, pistons;

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "ambdiag/algorithms/chi_square.h"
+#include "ambdiag/algorithms/fault_models.h"
 #include "ambdiag/algorithms/operating_reference.h"
 #include "ambdiag/core/error.h"
 #include "diagnosis_internal.h"
@@ -96,7 +97,7 @@ DiagnosisResult diagnose(const PlantModel& plant, const OperatingReference& ref,
   auto progress = [&](const std::string& stage, int done, int total) {
     if (options.progress) options.progress(stage, done, total);
   };
-  const std::vector<int> links = operating_detail::nuisance_links(plant);
+  const std::vector<int> links = fluid_seal_links(plant);
   check_reference(ref, plant, links);
   const Eigen::Index k = static_cast<Eigen::Index>(links.size());
   const double n_runs = static_cast<double>(ref.runs.size());

@@ -15,9 +15,6 @@ namespace ambdiag::operating_detail {
 
 using Values = std::vector<std::vector<std::complex<double>>>;  // [entry][line]
 
-// Indices of the links of kind `seal` and `balance_piston`.
-std::vector<int> nuisance_links(const PlantModel& plant);
-
 // The plant with link links[k]'s coefficients (and speed table) times exp(theta[k]).
 PlantModel with_nuisance(const PlantModel& plant, const std::vector<int>& links, const Eigen::VectorXd& theta);
 

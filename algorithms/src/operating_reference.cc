@@ -39,13 +39,6 @@ const OperatingEntry* OperatingReference::find(const std::string& output, const 
 
 namespace operating_detail {
 
-std::vector<int> nuisance_links(const PlantModel& plant) {
-  std::vector<int> out;
-  for (size_t i = 0; i < plant.links.size(); ++i)
-    if (plant.links[i].kind == "seal" || plant.links[i].kind == "balance_piston") out.push_back(static_cast<int>(i));
-  return out;
-}
-
 PlantModel with_nuisance(const PlantModel& plant, const std::vector<int>& links, const Eigen::VectorXd& theta) {
   PlantModel p = plant;
   for (size_t k = 0; k < links.size(); ++k) scale_link(p.links.at(static_cast<size_t>(links[k])), std::exp(theta[static_cast<Eigen::Index>(k)]));
@@ -273,7 +266,7 @@ OperatingReference learn_operating_reference(const PlantModel& plant, const std:
   for (const auto& r : all_lines) runs.push_back(on_lines(r, common));
   OperatingReference ref;
   ref.options = options;
-  const std::vector<int> links = nuisance_links(plant);
+  const std::vector<int> links = fluid_seal_links(plant);
   for (int i : links) ref.nuisance_links.push_back(plant.links[static_cast<size_t>(i)].name);
   const FrfData& first = runs.front();
   ref.freq_hz = first.freq_hz;

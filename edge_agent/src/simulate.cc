@@ -152,8 +152,7 @@ PumpSimulator::PumpSimulator(PlantModel plant, SimulationOptions opt) : base_(st
   // u is a property of the rotor: fixed at the model speed's G 2.5 value,
   // its force u Omega^2 follows each run's speed.
   lo.unbalance_kg_m = residual_unbalance_kg_m(base_) * opt_.unbalance_grade_mm_per_s / 2.5;
-  for (size_t i = 0; i < base_.links.size(); ++i)
-    if (base_.links[i].kind == "seal" || base_.links[i].kind == "balance_piston") seal_links_.push_back(static_cast<int>(i));
+  seal_links_ = fluid_seal_links(base_);
 
   const std::vector<FaultHypothesis> hyps = fault_hypotheses(base_);
   const int crack_element = std::max(0, impeller_node(base_) - 1);

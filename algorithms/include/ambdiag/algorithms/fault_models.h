@@ -66,4 +66,9 @@ double link_coefficient_factor(const FaultHypothesis& h, double value);
 // Multiplies every coefficient of a link and of its speed table by `factor`.
 void scale_link(Link& link, double factor);
 
+// The links whose coefficients come from the fluid (kind `seal` or
+// `balance_piston`), in link order: what a dry run removes and what
+// temperature and flow make drift.
+std::vector<int> fluid_seal_links(const PlantModel& plant);
+
 }  // namespace ambdiag
