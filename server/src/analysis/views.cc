@@ -131,7 +131,8 @@ std::optional<json> analysis_view(storage::Historian& h, const std::string& run_
     j["error"] = "run incomplete: " + run->status_reason;
     return j;
   }
-  const auto job = current_analysis_job(h, *run);
+  const auto ref = h.find_reference(run->pump_id);
+  const auto job = analysis_job(h, *run, model->version, ref ? ref->version : 0);
   if (!job) {
     j["status"] = "queued";
     j["progress"] = 0.0;
