@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "ambdiag/algorithms/diagnosis.h"
+#include "ambdiag/algorithms/diagnosis/diagnosis.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/process_memory.h"

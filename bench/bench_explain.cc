@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "ambdiag/algorithms/explain.h"
+#include "ambdiag/algorithms/explain/explain.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/process_memory.h"

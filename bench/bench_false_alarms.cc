@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "ambdiag/algorithms/frf_estimation.h"
-#include "ambdiag/algorithms/operating_reference.h"
+#include "ambdiag/algorithms/diagnosis/operating_reference.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
 #include "ambdiag/core/process_memory.h"
 #include "ambdiag/edge_agent/simulate.h"
 #include "bench_util.h"

@@ -13,8 +13,8 @@
 #include <cstdlib>
 #include <string>
 
-#include "ambdiag/algorithms/frf_estimation.h"
-#include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
+#include "ambdiag/algorithms/identification/rational_fit.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/process_memory.h"
 #include "ambdiag/core/run_recording.h"

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "ambdiag/algorithms/frf_synthesis.h"
-#include "ambdiag/algorithms/modal_analysis.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
+#include "ambdiag/algorithms/model/modal_analysis.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/process_memory.h"
 #include "generated_rotor.h"

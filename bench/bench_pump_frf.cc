@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "ambdiag/algorithms/frf_synthesis.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/process_memory.h"
 #include "bench_util.h"

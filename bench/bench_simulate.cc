@@ -10,7 +10,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "ambdiag/algorithms/amb_loop.h"
+#include "ambdiag/algorithms/simulation/amb_loop.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/process_memory.h"
 #include "bench_util.h"

@@ -7,10 +7,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/diagnosis.h"
-#include "ambdiag/algorithms/diagnosis_report.h"
-#include "ambdiag/algorithms/modal_features.h"
-#include "ambdiag/algorithms/operating_reference.h"
+#include "ambdiag/algorithms/diagnosis/diagnosis.h"
+#include "ambdiag/algorithms/diagnosis/diagnosis_report.h"
+#include "ambdiag/algorithms/diagnosis/operating_reference.h"
+#include "ambdiag/algorithms/identification/modal_features.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"

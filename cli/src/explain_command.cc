@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/explain.h"
+#include "ambdiag/algorithms/explain/explain.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"

@@ -7,10 +7,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/fit_report.h"
-#include "ambdiag/algorithms/mode_labels.h"
-#include "ambdiag/algorithms/modal_analysis.h"
-#include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/algorithms/identification/fit_report.h"
+#include "ambdiag/algorithms/identification/mode_labels.h"
+#include "ambdiag/algorithms/identification/rational_fit.h"
+#include "ambdiag/algorithms/model/modal_analysis.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"

@@ -7,9 +7,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/fit_report.h"
-#include "ambdiag/algorithms/frf_compare.h"
-#include "ambdiag/algorithms/frf_estimation.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
+#include "ambdiag/algorithms/identification/fit_report.h"
+#include "ambdiag/algorithms/model/frf_compare.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"

@@ -6,9 +6,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/campbell.h"
-#include "ambdiag/algorithms/frf_synthesis.h"
-#include "ambdiag/algorithms/modal_analysis.h"
+#include "ambdiag/algorithms/model/campbell.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
+#include "ambdiag/algorithms/model/modal_analysis.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/plant_model.h"

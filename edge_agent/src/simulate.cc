@@ -12,7 +12,7 @@
 #include <optional>
 #include <random>
 
-#include "ambdiag/algorithms/fault_models.h"
+#include "ambdiag/algorithms/diagnosis/fault_models.h"
 #include "ambdiag/core/error.h"
 
 namespace ambdiag::agent {

@@ -13,8 +13,8 @@
 #include <iostream>
 #include <set>
 
-#include "ambdiag/algorithms/frf_estimation.h"
-#include "ambdiag/algorithms/frf_synthesis.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/storage/historian.h"

@@ -9,7 +9,7 @@
 #include <iostream>
 #include <string>
 
-#include "ambdiag/algorithms/frf_synthesis.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/edge_agent/simulate.h"

@@ -11,11 +11,11 @@
 #include <cmath>
 #include <iostream>
 
-#include "ambdiag/algorithms/diagnosis.h"
-#include "ambdiag/algorithms/fault_models.h"
-#include "ambdiag/algorithms/frf_estimation.h"
-#include "ambdiag/algorithms/frf_synthesis.h"
-#include "ambdiag/algorithms/reference_statistics.h"
+#include "ambdiag/algorithms/diagnosis/diagnosis.h"
+#include "ambdiag/algorithms/diagnosis/fault_models.h"
+#include "ambdiag/algorithms/diagnosis/reference_statistics.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
+#include "ambdiag/algorithms/model/frf_synthesis.h"
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/frf_data.h"
 #include "simulate_support.h"

@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/operating_reference.h"
+#include "ambdiag/algorithms/diagnosis/operating_reference.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/storage/historian.h"
 

@@ -3,15 +3,15 @@
 #include <algorithm>
 #include <cmath>
 
-#include "ambdiag/algorithms/diagnosis_report.h"
-#include "ambdiag/algorithms/explain.h"
-#include "ambdiag/algorithms/fit_report.h"
-#include "ambdiag/algorithms/frf_compare.h"
-#include "ambdiag/algorithms/frf_estimation.h"
-#include "ambdiag/algorithms/missing_physics.h"
-#include "ambdiag/algorithms/modal_analysis.h"
-#include "ambdiag/algorithms/mode_labels.h"
-#include "ambdiag/algorithms/rational_fit.h"
+#include "ambdiag/algorithms/diagnosis/diagnosis_report.h"
+#include "ambdiag/algorithms/estimation/frf_estimation.h"
+#include "ambdiag/algorithms/explain/explain.h"
+#include "ambdiag/algorithms/explain/missing_physics.h"
+#include "ambdiag/algorithms/identification/fit_report.h"
+#include "ambdiag/algorithms/identification/mode_labels.h"
+#include "ambdiag/algorithms/identification/rational_fit.h"
+#include "ambdiag/algorithms/model/frf_compare.h"
+#include "ambdiag/algorithms/model/modal_analysis.h"
 #include "ambdiag/core/error.h"
 
 namespace ambdiag::server::detail {

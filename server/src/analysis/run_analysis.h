@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/operating_reference.h"
+#include "ambdiag/algorithms/diagnosis/operating_reference.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/run_recording.h"

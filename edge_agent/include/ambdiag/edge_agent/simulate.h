@@ -54,7 +54,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ambdiag/algorithms/amb_loop.h"
+#include "ambdiag/algorithms/simulation/amb_loop.h"
 #include "ambdiag/core/plant_model.h"
 #include "ambdiag/core/run_recording.h"
 

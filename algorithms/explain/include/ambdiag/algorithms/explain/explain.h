@@ -1,0 +1,118 @@
+// Explaining the mismatch between a plant model and a measured FRF matrix
+// (`ambdiag explain`, ../shared/specs/cli.md): where they differ beyond the
+// noise, which existing parameters are off, which physics the model lacks,
+// the improved model, and the fit before and after.
+//
+// Method (docs/explain.md):
+//  1. Locate. Weighted residual r = (H_model - H_meas) / sigma per entry and
+//     line; |r|^2 ~ Exp(1) when the model is right. A band is a run of lines
+//     whose 9-line moving mean of |r|^2 exceeds 4 (for a right model that
+//     mean is Gamma(9, 1/9): P(> 4) < 1e-8 per window, < 1e-3 over 25 entries
+//     x 10^4 lines), widened by the window and merged across entries that
+//     overlap in frequency. Each band is classified (plane, direction,
+//     radial/axial, direct/cross) and given a kind from the residual's shape.
+//  2. Select. Lines are split: even lines fit, odd lines validate. Greedy
+//     forward selection, first over updates of existing parameters within
+//     bounds, then over the physics library (missing_physics.h); a step
+//     accepts the candidate (or, when no single one pays, the best pair of
+//     the top singles) whose fit lowers chi2 on BOTH halves by more than a
+//     penalty per parameter: ln(n) / 2 (BIC in chi2 units, n = real data
+//     values) plus a 0.2 % of the current chi2 that absorbs model-form
+//     differences between simulators. Finally all selected parameters are
+//     refitted together and any update whose removal costs less than its
+//     penalty is dropped.
+//  3. Report. What bands remain beyond noise with the final model are
+//     `unexplained`; NRMSE per entry and overall before and after; the
+//     noise-floor NRMSE sqrt(sum sigma^2 / sum |H|^2).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ambdiag/algorithms/explain/missing_physics.h"
+#include "ambdiag/algorithms/model/modal_analysis.h"
+#include "ambdiag/algorithms/model/plant_frf_fit.h"
+#include "ambdiag/core/frf_data.h"
+#include "ambdiag/core/plant_model.h"
+
+namespace ambdiag {
+
+struct ExplainOptions {
+  int max_steps = 14;                    // selection steps (updates + physics)
+  double window_threshold = 4.0;         // band rule: 9-line mean of |r|^2 above this
+  double relative_penalty = 0.002;       // of the current chi2, per accepted step
+  int rotor_candidates_fitted = 1;       // FE updates and FE physics fitted fully per step (after screening)
+  int lowrank_fitted = 4;                // per step, updates and physics fitted on the low-rank model (explain_screen.h)
+  std::function<void(const std::string&)> progress;  // one line per stage; may be empty
+};
+
+// A frequency band where model and measurement differ beyond the noise.
+struct Mismatch {
+  std::vector<std::string> outputs, inputs;  // sensors and actuators of the entries involved
+  std::vector<std::string> entries;          // "xAx/fAy"
+  double band_lo_hz = 0.0, band_hi_hz = 0.0;
+  double chi2_per_line = 0.0;                // mean |r|^2 over the band's entries and lines
+  std::string kind;  // extra_resonance, shifted_resonance, damping_change, phase_drift, cross_asymmetry,
+                     // anti_resonance_moved, level_change
+  nlohmann::json classification;             // planes, directions, radial/axial, direct/cross counts
+  std::optional<nlohmann::json> mode;        // nearest model mode (label, f_hz, zeta) in the band
+};
+
+struct Explanation {
+  std::string physics;
+  nlohmann::json parameters, location, sd;
+  double nrmse_before = 0.0, nrmse_after = 0.0;  // whole matrix, before and after this step
+  double chi2_drop_fit = 0.0, chi2_drop_validation = 0.0, penalty = 0.0;
+  std::string evidence;
+};
+
+struct EntryFit {
+  std::string output, input;
+  double nrmse_before = 0.0, nrmse_after = 0.0, noise_floor = 0.0;
+  double chi2_per_line_before = 0.0, chi2_per_line_after = 0.0;
+};
+
+struct ModePair {
+  std::string label;
+  double model_f_hz = 0.0, model_zeta = 0.0;
+  double improved_f_hz = 0.0, improved_zeta = 0.0;  // NaN: missing in the improved model
+  std::string status;  // paired, shifted, damping_changed, extra (only in improved), missing
+  std::string direction, whirl;
+};
+
+struct ExplainResult {
+  std::vector<Mismatch> mismatches;
+  std::vector<Explanation> explanations;
+  std::vector<Mismatch> unexplained;
+  std::vector<ParameterChange> updated_parameters;
+  std::vector<EntryFit> entries;
+  std::vector<ModePair> modes;
+  double nrmse_before = 0.0, nrmse_after = 0.0, noise_floor_nrmse = 0.0;
+  double chi2_per_line_before = 0.0, chi2_per_line_after = 0.0;
+  PlantVariant improved;
+  FrfData model_before, model_after;  // on the measured grid
+  int rotor_solves = 0, evaluations = 0;
+  std::vector<std::string> story;  // plain sentences for the text output
+};
+
+// Throws InputError when the measurement and the model do not fit together
+// (an entry names a sensor/actuator the model lacks).
+ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const ExplainOptions& options = {});
+
+// Locating alone (step 1) for a model's FRF against the measurement.
+// `model_modes` (modal_analysis of the plant) name the mode behind a band.
+std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& model, const PlantFrfEvaluator& eval,
+                                        const std::vector<Mode>& model_modes, double window_threshold = 4.0);
+
+// The JSON document of cli.md (plus extra keys: entries, modes, noise floor).
+nlohmann::json explain_to_json(const ExplainResult& r);
+
+// Measured vs model vs improved model (|H| and phase) of the four entries
+// with the largest mismatch, mismatch bands shaded: an SVG document.
+std::string explain_svg(const ExplainResult& r, const FrfData& measured);
+
+}  // namespace ambdiag
