@@ -291,6 +291,56 @@ Candidate noncollocation(const PlantModel& plant, const std::string& plane, int 
   return c;
 }
 
+// Every disk's polar inertia changed by one amount: Ip = Ip0 + g Ip_ref with
+// Ip_ref = Ip0, or 2 Id (a thin disk) where the model states no Ip. The
+// additive form lets a model that left the gyroscopic effect out entirely
+// (every Ip zero) get it back; with Ip0 > 0 it is the factor 1 + g.
+Candidate gyroscopic(const PlantModel& plant) {
+  std::vector<double> ip_ref;
+  for (const auto& d : plant.disks) ip_ref.push_back(d.ip_kg_m2 > 0.0 ? d.ip_kg_m2 : 2.0 * d.id_kg_m2);
+  bool all_zero = true;
+  for (const auto& d : plant.disks) all_zero = all_zero && d.ip_kg_m2 == 0.0;
+  Candidate c;
+  c.physics = "gyroscopic";
+  c.touches_rotor = true;
+  c.id = "gyroscopic";
+  c.location = {{"disks", "all"}};
+  c.params = {{"Ip_change", 0.0, -1.0, 3.0, 0.05}};
+  c.apply = [ip_ref](const std::vector<double>& x, PlantVariant& v) {
+    for (size_t k = 0; k < v.plant.disks.size() && k < ip_ref.size(); ++k) v.plant.disks[k].ip_kg_m2 += x[0] * ip_ref[k];
+  };
+  c.describe = [all_zero](const std::vector<double>& x) {
+    return all_zero ? json{{"Ip_over_2Id", x[0]}} : json{{"Ip_factor", 1.0 + x[0]}};
+  };
+  c.signature = all_zero ? "forward and backward whirl of each mode split (disk polar inertia the model left out)"
+                         : "forward/backward whirl split of the modes changes";
+  return c;
+}
+
+// A new link to ground at a node: kxx = kyy = k, cxx = cyy = c.
+Candidate node_support(int node, double kref, double cref) {
+  Candidate c;
+  c.physics = "coupling_stiffness";
+  c.touches_rotor = true;
+  c.id = "coupling_stiffness:node" + std::to_string(node);
+  c.location = {{"node", node}, {"link", "none in the model"}};
+  c.params = {{"k", 0.0, 0.0, 10.0 * kref, 0.02 * kref}, {"c", 0.0, 0.0, 10.0 * cref, 0.02 * cref}};
+  c.screen_params = 1;
+  c.apply = [node](const std::vector<double>& x, PlantVariant& v) {
+    if (x[0] == 0.0 && x[1] == 0.0) return;  // neutral: the model as it is
+    Link l;
+    l.name = "support_node" + std::to_string(node);
+    l.kind = "coupling";
+    l.node = node;
+    l.coef[idx(LinkCoef::kxx)] = l.coef[idx(LinkCoef::kyy)] = x[0];
+    l.coef[idx(LinkCoef::cxx)] = l.coef[idx(LinkCoef::cyy)] = x[1];
+    v.plant.links.push_back(std::move(l));
+  };
+  c.describe = [](const std::vector<double>& x) { return json{{"k", x[0]}, {"c", x[1]}}; };
+  c.signature = "modes with motion at the node stiffened (a coupling or support to ground the model lacks)";
+  return c;
+}
+
 }  // namespace
 
 std::vector<Candidate> update_candidates(const PlantModel& plant) {
@@ -377,20 +427,19 @@ std::vector<Candidate> physics_candidates(const PlantModel& plant, const Residua
       if (c.apply) out.push_back(std::move(c));
     }
   }
-  if (!plant.disks.empty()) {
-    Candidate c;
-    c.physics = "gyroscopic";
-    c.touches_rotor = true;
-    c.id = "gyroscopic";
-    c.location = {{"disks", "all"}};
-    c.params = {factor_param("Ip_factor", 0.0, 4.0)};
-    c.apply = [](const std::vector<double>& x, PlantVariant& v) {
-      for (auto& d : v.plant.disks) d.ip_kg_m2 *= x[0];
-    };
-    c.describe = [](const std::vector<double>& x) { return json{{"Ip_factor", x[0]}}; };
-    c.signature = "forward/backward whirl split of the modes changes";
-    out.push_back(c);
+  if (!plant.disks.empty()) out.push_back(gyroscopic(plant));
+  // A stiffness to ground where the model has no link at all (a coupling or
+  // support it lacks, e.g. the drive-end coupling left out): every node.
+  double kref = 0.0, cref = 0.0;
+  for (const auto& l : plant.links) {
+    const LinkCoefficients at = l.at_speed(plant.speed_rpm);
+    kref = std::max({kref, std::abs(at[idx(LinkCoef::kxx)]), std::abs(at[idx(LinkCoef::kyy)])});
+    cref = std::max({cref, std::abs(at[idx(LinkCoef::cxx)]), std::abs(at[idx(LinkCoef::cyy)])});
   }
+  std::set<int> linked;
+  for (const auto& l : plant.links) linked.insert(l.node);
+  for (int n = 0; n < plant.node_count(); ++n)
+    if (!linked.count(n)) out.push_back(node_support(n, std::max(kref, 1e5), std::max(cref, 100.0)));
   // Structural damping beyond its update bounds is not offered: the update
   // covers it and a second factor would only compound with it.
   return out;
