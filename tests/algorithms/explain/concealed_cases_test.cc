@@ -73,9 +73,35 @@ TEST(ConcealedCases, EveryConcealmentShowsBeyondTheNoise) {
       EXPECT_GT(before.nrmse, 2.0);
     }
     if (c.absorber) {
-      EXPECT_NEAR(c.extra_mode_hz, c.absorber->f_hz(), 0.1 * c.absorber->f_hz());
-      EXPECT_NEAR(c.absorber->zeta(), c.effect == "absorber" && c.machine == "reference_pump" ? 0.02 : 0.015, 1e-12);
+      EXPECT_NEAR(c.extra_mode_hz, c.absorber->f_hz(), 0.06 * c.absorber->f_hz());
+      EXPECT_NEAR(c.absorber->zeta(), 0.01, 1e-12);
     }
+  }
+}
+
+// The absorber's own mode stands out of the noise even after the best a
+// rigid mass could do (the same mass fixed to the node, which is what the
+// absorber looks like below its tuning): in the 9-line windows around its
+// mode the mean |r|^2 is far above explain's band threshold of 4.
+TEST(ConcealedCases, AbsorberModeIsNotAnAddedMass) {
+  for (const auto& machine : testing::concealed_machines()) {
+    SCOPED_TRACE(machine);
+    const testing::ConcealedCase c = testing::concealed_case(testing::reference_pump_model(), machine, "absorber");
+    PlantModel rigid = c.truth;
+    rigid.disks.push_back({"absorber_as_mass", c.absorber->node, c.absorber->m_kg, 0.0, 0.0});
+    const FrfData h = model_frf_like(rigid, c.measured);
+    double worst = 0.0;  // over entries and windows near the mode
+    const size_t n = c.measured.freq_hz.size();
+    for (size_t e = 0; e < c.measured.entries.size(); ++e)
+      for (size_t l = 4; l + 4 < n; ++l) {
+        if (std::abs(c.measured.freq_hz[l] - c.extra_mode_hz) > 0.03 * c.extra_mode_hz) continue;
+        double s = 0.0;
+        for (size_t j = l - 4; j <= l + 4; ++j)
+          s += std::norm((h.entries[e].h[j] - c.measured.entries[e].h[j]) / c.measured.entries[e].sigma[j]);
+        worst = std::max(worst, s / 9.0);
+      }
+    std::printf("%s: absorber mode at %.0f Hz, 9-line mean |r|^2 against a rigid mass up to %.1f\n", c.name.c_str(), c.extra_mode_hz, worst);
+    EXPECT_GT(worst, 20.0);
   }
 }
 
