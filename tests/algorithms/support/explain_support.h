@@ -11,10 +11,9 @@
 
 namespace ambdiag::testing {
 
-inline FrfData noisy_recording(const PlantVariant& truth, const std::vector<double>& freq_hz, unsigned seed,
-                               double noise_rel = 0.01) {
-  FrfData f = synthesize_frf(truth.plant, truth.plant.speed_rpm, freq_hz, {FrfMethod::modal});
-  f.speed_rpm = truth.plant.speed_rpm;
+// Adds the recording's noise to a clean FRF (and the acquisition delay:
+// h -> h exp(-j w delay_s) + noise), sigma columns set.
+inline void add_recording_noise(FrfData& f, double delay_s, unsigned seed, double noise_rel = 0.01) {
   double max_rms = 0.0;
   std::vector<double> rms;
   for (const auto& e : f.entries) {
@@ -30,10 +29,17 @@ inline FrfData noisy_recording(const PlantVariant& truth, const std::vector<doub
     const double sigma = noise_rel * (rms[k] > 1e-6 * max_rms ? rms[k] : 1e-3 * max_rms);
     e.sigma.assign(e.h.size(), sigma);
     for (size_t l = 0; l < e.h.size(); ++l) {
-      const double w = 2 * M_PI * freq_hz[l];
-      e.h[l] = e.h[l] * std::polar(1.0, -w * truth.delay_s) + sigma / std::sqrt(2.0) * std::complex<double>(n01(rng), n01(rng));
+      const double w = 2 * M_PI * f.freq_hz[l];
+      e.h[l] = e.h[l] * std::polar(1.0, -w * delay_s) + sigma / std::sqrt(2.0) * std::complex<double>(n01(rng), n01(rng));
     }
   }
+}
+
+inline FrfData noisy_recording(const PlantVariant& truth, const std::vector<double>& freq_hz, unsigned seed,
+                               double noise_rel = 0.01) {
+  FrfData f = synthesize_frf(truth.plant, truth.plant.speed_rpm, freq_hz, {FrfMethod::modal});
+  f.speed_rpm = truth.plant.speed_rpm;
+  add_recording_noise(f, truth.delay_s, seed, noise_rel);
   return f;
 }
 
