@@ -291,13 +291,13 @@ Candidate noncollocation(const PlantModel& plant, const std::string& plane, int 
   return c;
 }
 
-// Every disk's polar inertia changed by one amount: Ip = Ip0 + g Ip_ref with
-// Ip_ref = Ip0, or 2 Id (a thin disk) where the model states no Ip. The
-// additive form lets a model that left the gyroscopic effect out entirely
-// (every Ip zero) get it back; with Ip0 > 0 it is the factor 1 + g.
+// The gyroscopic effect of the disks. Where the model states polar
+// inertias, one factor scales them all (Ip = (1 + g) Ip0). Where it states
+// none (every Ip zero: the effect left out), each disk gets its own Ip in
+// [0, 2.2 Id]: a body of revolution has Ip <= 2 Id (a thin disk reaches
+// it), and one common ratio to Id would leave a pattern that other physics
+// would be called in to cover.
 Candidate gyroscopic(const PlantModel& plant) {
-  std::vector<double> ip_ref;
-  for (const auto& d : plant.disks) ip_ref.push_back(d.ip_kg_m2 > 0.0 ? d.ip_kg_m2 : 2.0 * d.id_kg_m2);
   bool all_zero = true;
   for (const auto& d : plant.disks) all_zero = all_zero && d.ip_kg_m2 == 0.0;
   Candidate c;
@@ -305,15 +305,32 @@ Candidate gyroscopic(const PlantModel& plant) {
   c.touches_rotor = true;
   c.id = "gyroscopic";
   c.location = {{"disks", "all"}};
-  c.params = {{"Ip_change", 0.0, -1.0, 3.0, 0.05}};
-  c.apply = [ip_ref](const std::vector<double>& x, PlantVariant& v) {
-    for (size_t k = 0; k < v.plant.disks.size() && k < ip_ref.size(); ++k) v.plant.disks[k].ip_kg_m2 += x[0] * ip_ref[k];
+  if (!all_zero) {
+    c.params = {{"Ip_change", 0.0, -1.0, 3.0, 0.05}};
+    c.apply = [](const std::vector<double>& x, PlantVariant& v) {
+      for (auto& d : v.plant.disks) d.ip_kg_m2 *= 1.0 + x[0];
+    };
+    c.describe = [](const std::vector<double>& x) { return json{{"Ip_factor", 1.0 + x[0]}}; };
+    c.signature = "forward/backward whirl split of the modes changes";
+    return c;
+  }
+  std::vector<std::string> names;
+  for (size_t k = 0; k < plant.disks.size(); ++k) {
+    const Disk& d = plant.disks[k];
+    const double top = 2.2 * std::max(d.id_kg_m2, 1e-9);
+    names.push_back(d.name.empty() ? "disk" + std::to_string(k) : d.name);
+    c.params.push_back({"Ip:" + names.back(), 0.0, 0.0, top, 0.05 * top});
+  }
+  c.apply = [](const std::vector<double>& x, PlantVariant& v) {
+    for (size_t k = 0; k < v.plant.disks.size() && k < x.size(); ++k) v.plant.disks[k].ip_kg_m2 += x[k];
   };
-  c.describe = [all_zero](const std::vector<double>& x) {
-    return all_zero ? json{{"Ip_over_2Id", x[0]}} : json{{"Ip_factor", 1.0 + x[0]}};
+  c.describe = [names](const std::vector<double>& x) {
+    json ip = json::object();
+    double total = 0.0;
+    for (size_t k = 0; k < x.size(); ++k) ip[names[k]] = x[k], total += x[k];
+    return json{{"Ip_kg_m2", ip}, {"Ip_total_kg_m2", total}};
   };
-  c.signature = all_zero ? "forward and backward whirl of each mode split (disk polar inertia the model left out)"
-                         : "forward/backward whirl split of the modes changes";
+  c.signature = "forward and backward whirl of each mode split apart, damping unchanged (disk polar inertia the model left out)";
   return c;
 }
 

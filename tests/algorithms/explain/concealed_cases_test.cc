@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "ambdiag/algorithms/explain/explain.h"
 #include "ambdiag/algorithms/model/frf_compare.h"
 #include "concealed_cases.h"
 
@@ -103,6 +104,15 @@ TEST(ConcealedCases, AbsorberModeIsNotAnAddedMass) {
     std::printf("%s: absorber mode at %.0f Hz, 9-line mean |r|^2 against a rigid mass up to %.1f\n", c.name.c_str(), c.extra_mode_hz, worst);
     EXPECT_GT(worst, 20.0);
   }
+}
+
+// Explain's target on the quickest concealed case (the others run in
+// explain_concealed_slow_test.cc): the omitted disk polar inertias are
+// named as gyroscopic and nothing else is claimed.
+TEST(ExplainConcealedQuick, GyroscopicOmittedOnTheReferencePump) {
+  const testing::ConcealedCase c = testing::concealed_case(testing::reference_pump_model(), "reference_pump", "gyroscopic_omitted");
+  const ExplainResult r = explain(c.nominal, c.measured);
+  for (const auto& f : testing::concealed_verdict(c, r)) ADD_FAILURE() << c.name << ": " << f;
 }
 
 }  // namespace
