@@ -462,6 +462,27 @@ std::vector<Candidate> physics_candidates(const PlantModel& plant, const Residua
   return out;
 }
 
+Candidate resonant_attachment(const PlantModel& plant, int node, double f_lo_hz, double f_hi_hz) {
+  const double mr = plant.rotor_mass_kg();
+  Candidate c;
+  c.physics = "resonant_attachment";
+  c.touches_rotor = true;
+  c.id = "resonant_attachment:node" + std::to_string(node);
+  c.location = {{"node", node}, {"z_m", plant.node_positions_m()[static_cast<size_t>(node)]}};
+  const double f0 = std::sqrt(f_lo_hz * f_hi_hz);
+  c.params = {{"f_hz", f0, f_lo_hz, f_hi_hz, 0.01 * f0}, {"zeta", 0.02, 0.001, 0.3, 0.005}, {"kg", 0.02 * mr, 1e-4 * mr, 0.5 * mr, 0.005 * mr}};
+  c.impedance_node = node;
+  c.node_impedance = [](double w, const std::vector<double>& x) {
+    const double wn = 2.0 * M_PI * x[0];
+    const std::complex<double> kc(x[2] * wn * wn, w * 2.0 * x[1] * x[2] * wn);
+    return -w * w * x[2] * kc / (kc - w * w * x[2]);
+  };
+  c.apply = [](const std::vector<double>&, PlantVariant&) {};
+  c.describe = [](const std::vector<double>& x) { return json{{"f_hz", x[0]}, {"zeta", x[1]}, {"kg", x[2]}}; };
+  c.signature = "an extra mode of its own, seen on every lateral entry, at a place on the rotor";
+  return c;
+}
+
 std::vector<Candidate> neighbour_candidates(const PlantModel& plant, const Candidate& c) {
   std::vector<Candidate> out;
   if (c.physics == "added_mass") {

@@ -128,6 +128,7 @@ Eigen::MatrixXcd RotorScreen::block(const std::vector<int>& rows, const std::vec
 }
 
 std::optional<LowRankChange> RotorScreen::change_of(const Candidate& c) const {
+  if (c.node_impedance) return impedance_change(c);
   const double rpm = eval_.speed_rpm(current_.plant);
   const Bare b0 = bare(current_.plant, rpm);
   std::vector<double> x0;
@@ -164,7 +165,13 @@ std::optional<LowRankChange> RotorScreen::change_of(const Candidate& c) const {
     ch.dm.push_back(restrict(d.m, ch.dofs));
     ch.dc.push_back(restrict(d.c, ch.dofs));
   }
-  // Distinct (moved) sensor and actuator DOFs of the lateral entries.
+  finish_change(ch, sensors);
+  return ch;
+}
+
+// Distinct (moved) sensor and actuator DOFs of the lateral entries, and the
+// receptance blocks the Woodbury update needs.
+void RotorScreen::finish_change(LowRankChange& ch, const std::vector<int>& sensors) const {
   std::vector<int> rows, cols;
   auto index_of = [](std::vector<int>& v, int dof) {
     auto it = std::find(v.begin(), v.end(), dof);
@@ -186,6 +193,19 @@ std::optional<LowRankChange> RotorScreen::change_of(const Candidate& c) const {
     ch.g_uu = block(ch.dofs, ch.dofs).transpose();
     ch.g_ua = block(ch.dofs, cols).transpose();
   }
+}
+
+// A node impedance: U is the node's x and y, no node-matrix change, the
+// sensors where they are; the impedance enters per line in residual_change.
+std::optional<LowRankChange> RotorScreen::impedance_change(const Candidate& c) const {
+  LowRankChange ch;
+  ch.dofs = {lateral_dof(c.impedance_node, 'x'), lateral_dof(c.impedance_node, 'y')};
+  for (size_t i = 0; i <= c.params.size(); ++i) {
+    ch.dk.push_back(Eigen::MatrixXd::Zero(2, 2));
+    ch.dm.push_back(Eigen::MatrixXd::Zero(2, 2));
+    ch.dc.push_back(Eigen::MatrixXd::Zero(2, 2));
+  }
+  finish_change(ch, base_sensor_dof_);
   return ch;
 }
 
@@ -223,6 +243,10 @@ std::vector<cd> RotorScreen::residual_change(const LowRankChange& ch, const Cand
           const auto rr = static_cast<Eigen::Index>(r), jj = static_cast<Eigen::Index>(j);
           dz[r * nuu + j] = cd(k(rr, jj) - w * w * m(rr, jj), w * cm(rr, jj));
         }
+      if (c.node_impedance) {
+        const cd z = c.node_impedance(w, x);
+        for (size_t r = 0; r < nuu; ++r) dz[r * nuu + r] += z;
+      }
       // a = I + dZ G_uu; solve a t = dZ by Gaussian elimination with
       // partial pivoting (|U| is a few DOFs).
       for (size_t r = 0; r < nuu; ++r)

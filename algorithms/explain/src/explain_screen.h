@@ -66,6 +66,8 @@ class RotorScreen {
   std::vector<int> sensor_dofs_, actuator_dofs_;
   Eigen::MatrixXcd col_a_, row_s_;
   mutable std::map<std::vector<int>, Eigen::MatrixXcd> uu_;
+  std::optional<LowRankChange> impedance_change(const Candidate& c) const;
+  void finish_change(LowRankChange& ch, const std::vector<int>& sensors) const;
   // Block G[rows, cols] from the shared ones where they hold it.
   Eigen::MatrixXcd block(const std::vector<int>& rows, const std::vector<int>& cols) const;
 };

@@ -60,6 +60,10 @@ struct Mismatch {
                      // anti_resonance_moved, level_change
   nlohmann::json classification;             // planes, directions, radial/axial, direct/cross counts
   std::optional<nlohmann::json> mode;        // nearest model mode (label, f_hz, zeta) in the band
+  // Unexplained bands: where and what, when a resonant attachment (not in
+  // the catalogue; missing_physics.h) locates the extra mode.
+  std::optional<nlohmann::json> located;
+  std::string evidence;
 };
 
 struct Explanation {

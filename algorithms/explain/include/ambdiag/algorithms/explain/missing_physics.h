@@ -27,6 +27,7 @@
 // link's speed table too.
 #pragma once
 
+#include <complex>
 #include <functional>
 #include <string>
 #include <vector>
@@ -68,6 +69,12 @@ struct Candidate {
   std::function<nlohmann::json(const std::vector<double>& x)> describe;
   // Changes of existing values (updates), against the plant it was made for.
   std::function<std::vector<ParameterChange>(const std::vector<double>& x)> changes;
+  // A change the plant format cannot express: a dynamic stiffness z(w, x)
+  // added to the lateral x and y DOFs of node `impedance_node` (to
+  // K - w^2 M + j w C). Evaluated only on the low-rank model of the rotor
+  // (explain_screen.h), where it is exact; `apply` leaves the plant alone.
+  int impedance_node = -1;
+  std::function<std::complex<double>(double omega_rad_per_s, const std::vector<double>& x)> node_impedance;
 };
 
 // What the candidate generator looks at: the weighted residual of the
@@ -83,6 +90,14 @@ std::vector<Candidate> update_candidates(const PlantModel& plant);
 // Physics candidates proposed from the signatures in the residual (housing
 // modes start at the residual's peaks; a delay at the phase slope).
 std::vector<Candidate> physics_candidates(const PlantModel& plant, const ResidualView& view);
+
+// Not in the catalogue, a locator for what it cannot express: a mass m on
+// a spring and damper tuned to f_hz with damping ratio zeta, attached to
+// the rotor at `node` in x and y (a dynamic absorber, an attached part with
+// a resonance of its own): z(w) = -w^2 m (k + j w c) / (k + j w c - w^2 m),
+// k = m (2 pi f)^2, c = 2 zeta m (2 pi f). Parameters f_hz in [f_lo_hz,
+// f_hi_hz], zeta, kg.
+Candidate resonant_attachment(const PlantModel& plant, int node, double f_lo_hz, double f_hi_hz);
 
 // The same physics at neighbouring places (added mass up to two nodes
 // either side), for refining a discrete location after the other parameters settled.
