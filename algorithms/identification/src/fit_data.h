@@ -127,9 +127,11 @@ struct MlSolution {
   std::string stop_reason;
 };
 // Levenberg-Marquardt on the poles (and the delay when fit_delay) with the
-// residues projected out; `delay_s` is the start (or fixed) delay.
+// residues projected out; `delay_s` is the start (or fixed) delay. Poles
+// marked in `fixed` (per pole, may be empty) keep their place (their
+// residues stay free); the covariance is then conditional on them.
 MlSolution ml_refine(const FitData& data, std::vector<cd> poles, int max_iterations, bool fit_delay = false,
-                     double delay_s = 0.0);
+                     double delay_s = 0.0, const std::vector<bool>& fixed = {});
 
 // Which output and input (indices) each fitted entry connects.
 struct ModalStructure {
@@ -141,6 +143,7 @@ struct PairRefit {
   cd poles[2];
   double cost = 0.0;              // weighted cost with modal residues for the pair
   Eigen::Matrix4d covariance;     // of [Re q1, Im q1, Re q2, Im q2], unscaled like MlSolution's
+  Eigen::MatrixXcd residues;      // entries x 2: psi(o) l(i) of each pole
   int iterations = 0;
   bool ok = false;
 };

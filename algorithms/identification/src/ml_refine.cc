@@ -210,8 +210,26 @@ Normal normal_equations(const FitData& data, const std::vector<cd>& poles, bool 
 
 }  // namespace
 
-MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iterations, bool fit_delay, double delay_s) {
+MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iterations, bool fit_delay, double delay_s,
+                     const std::vector<bool>& fixed) {
   MlSolution out;
+  // Parameters of fixed poles: their rows and columns of J^T J are replaced
+  // by the identity and their gradient by 0, so no step moves them.
+  std::vector<int> fixed_params;
+  for (size_t k = 0, c = 0; k < poles.size(); ++k) {
+    const int n = poles[k].imag() == 0.0 ? 1 : 2;
+    if (k < fixed.size() && fixed[k])
+      for (int i = 0; i < n; ++i) fixed_params.push_back(static_cast<int>(c) + i);
+    c += static_cast<size_t>(n);
+  }
+  const auto hold = [&fixed_params](Eigen::MatrixXd& jtj, Eigen::VectorXd& jtr) {
+    for (int i : fixed_params) {
+      jtj.row(i).setZero();
+      jtj.col(i).setZero();
+      jtj(i, i) = 1.0;
+      jtr(i) = 0.0;
+    }
+  };
   double mu = 1e-3;
   FitData data = undelayed(data_in, delay_s);
   // General weights: the least squares of the accepted trial are kept.
@@ -225,6 +243,7 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
     return normal_equations_general(data, p, fit_delay, phi, current);
   };
   Normal ne = build(poles);
+  hold(ne.jtj, ne.jtr);
 
   double cost = ne.linear.cost;
   const int npp = parameter_count(poles);
@@ -264,6 +283,7 @@ MlSolution ml_refine(const FitData& data_in, std::vector<cd> poles, int max_iter
           accepted = true;
           current = std::move(sys);
           ne = build(poles);
+          hold(ne.jtj, ne.jtr);
           if (chi2_drop < 1e-3) {
             out.converged = true;
             out.stop_reason = "chi^2 decrease below 1e-3";

@@ -219,6 +219,9 @@ PairRefit refit_pair_rank_one(const FitData& data, const std::vector<cd>& poles,
   out.poles[0] = p.q[0];
   out.poles[1] = p.q[1];
   out.cost = cost;
+  out.residues.resize(E, 2);
+  for (int e = 0; e < E; ++e)
+    for (int m = 0; m < 2; ++m) out.residues(e, m) = p.psi(modal.output_of[static_cast<size_t>(e)], m) * p.l(modal.input_of[static_cast<size_t>(e)], m);
   // Marginal covariance of the pole parameters: the Schur complement of
   // the residue block (singular: psi and l share one complex scale per
   // pole, so its pseudo-inverse).

@@ -48,6 +48,11 @@ constexpr int kSplitTrialIterations = 10;
 // at most this many LM iterations.
 constexpr double kMaxPairZeta = 0.5;
 constexpr int kPairIterations = 40;
+// A pair whose modal refit fails the test with the other poles fixed, but
+// by less than this factor of the allowed rise, gets up to kJointRounds
+// rounds of the other poles refitted with the pair held.
+constexpr double kMaxJointRise = 10.0;
+constexpr int kJointRounds = 3;
 
 int numerator_power(FrfQuantity q) {
   switch (q) {
@@ -395,6 +400,11 @@ std::vector<double> residue_rank_ratio(const detail::ModalStructure& modal, cons
 // poles are kept when the likelihood ratio does not reject the constraint:
 // chi^2 rises by less than the removed parameters plus kMinSplitZ standard
 // deviations. A repeated root (x/y housing modes: rank two) is rejected.
+// The other poles were placed by the free fit, around the pair's free
+// residues; when the test fails with them fixed (by less than
+// kMaxJointRise x the allowed rise), they are refitted with the pair's
+// modal contribution held and the pair refitted again (up to kJointRounds
+// rounds, poles of pairs accepted before held too).
 void refit_close_pairs(const FrfData& frf, const std::vector<int>& entries, const FitData& undelayed_data, double noise_scale2,
                        detail::MlSolution& ml) {
   const detail::ModalStructure modal = modal_structure(frf, entries);
@@ -410,18 +420,64 @@ void refit_close_pairs(const FrfData& frf, const std::vector<int>& entries, cons
   std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return ml.poles[x].imag() < ml.poles[y].imag(); });
   std::vector<int> col(ml.poles.size(), 0);
   for (size_t k = 1; k < ml.poles.size(); ++k) col[k] = col[k - 1] + (ml.poles[k - 1].imag() == 0.0 ? 1 : 2);
+  std::vector<bool> constrained(ml.poles.size(), false);  // poles of accepted pairs: held in later joint rounds
   for (size_t n = 0; n + 1 < order.size(); ++n) {
     const size_t k1 = order[n], k2 = order[n + 1];
     const cd p1 = ml.poles[k1], p2 = ml.poles[k2];
     if (!(p2.imag() - p1.imag() < -p1.real() - p2.real())) continue;
-    const detail::PairRefit r = detail::refit_pair_rank_one(undelayed_data, ml.poles, ml.linear.residues, k1, k2, modal, kPairIterations);
-    const double rise = 2.0 * (r.cost - ml.linear.cost) / noise_scale2;
+    detail::PairRefit r = detail::refit_pair_rank_one(undelayed_data, ml.poles, ml.linear.residues, k1, k2, modal, kPairIterations);
+    double rise = 2.0 * (r.cost - ml.linear.cost) / noise_scale2;
+    // The other poles were placed by the free fit, whose pair residues
+    // also absorbed part of their misfit. When the constraint does not pass
+    // with them fixed, but is not far off, refit them with the pair's
+    // modal contribution held (block coordinate descent on the joint
+    // constrained likelihood), then the pair again.
+    std::vector<cd> poles = ml.poles;
+    Eigen::MatrixXd others_cov;
+    for (int round = 0; round < kJointRounds && r.ok && !(rise < allowed) && rise < kMaxJointRise * allowed; ++round) {
+      detail::FitData rest = undelayed_data;
+      const Eigen::MatrixXcd pair_basis = detail::pole_basis({r.poles[0], r.poles[1]}, rest.w, false);
+      for (int e = 0; e < rest.entries(); ++e)
+        for (int m = 0; m < 2; ++m)
+          rest.h.col(e) -= r.residues(e, m).real() * pair_basis.col(2 * m) + r.residues(e, m).imag() * pair_basis.col(2 * m + 1);
+      std::vector<cd> others;
+      std::vector<bool> held;
+      for (size_t k = 0; k < poles.size(); ++k)
+        if (k != k1 && k != k2) {
+          others.push_back(poles[k]);
+          held.push_back(constrained[k]);
+        }
+      const detail::MlSolution mo = detail::ml_refine(rest, others, kPairIterations, false, 0.0, held);
+      std::vector<cd> trial;
+      for (size_t k = 0, o = 0; k < poles.size(); ++k) trial.push_back(k == k1 ? r.poles[0] : k == k2 ? r.poles[1] : mo.poles[o++]);
+      const detail::PairRefit r2 = detail::refit_pair_rank_one(undelayed_data, trial, detail::solve_residues(undelayed_data, trial).residues, k1, k2, modal, kPairIterations);
+      if (!r2.ok || !(r2.cost < r.cost)) break;
+      r = r2;
+      trial[k1] = r.poles[0];
+      trial[k2] = r.poles[1];
+      poles = trial;
+      others_cov = mo.pole_covariance;
+      rise = 2.0 * (r.cost - ml.linear.cost) / noise_scale2;
+    }
     if (!r.ok || !(rise < allowed)) continue;
+    if (others_cov.size() > 0) {
+      // Covariance of the other poles conditional on the pair, like the
+      // pair's conditional on them (poles held in the rounds keep theirs).
+      Eigen::Index oc = 0;
+      for (size_t k = 0; k < poles.size(); ++k) {
+        if (k == k1 || k == k2) continue;
+        const int n_k = poles[k].imag() == 0.0 ? 1 : 2;
+        if (!constrained[k]) ml.pole_covariance.block(col[k], col[k], n_k, n_k) = others_cov.block(oc, oc, n_k, n_k);
+        oc += n_k;
+      }
+    }
+    ml.poles = poles;
     ml.poles[k1] = r.poles[0];
     ml.poles[k2] = r.poles[1];
     ml.linear = detail::solve_residues(undelayed_data, ml.poles);
     ml.pole_covariance.block(col[k1], col[k1], 2, 2) = r.covariance.topLeftCorner(2, 2);
     ml.pole_covariance.block(col[k2], col[k2], 2, 2) = r.covariance.bottomRightCorner(2, 2);
+    constrained[k1] = constrained[k2] = true;
     ++n;  // each pole in one pair
   }
 }
