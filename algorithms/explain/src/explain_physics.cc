@@ -256,11 +256,14 @@ Candidate added_mass(const PlantModel& plant, int node) {
   c.touches_rotor = true;
   c.id = "added_mass:node" + std::to_string(node);
   c.location = {{"node", node}};
-  c.params = {{"kg", 0.0, 0.0, 0.5 * mr, ms}, {"Id", 0.0, 0.0, 0.5 * mr * 0.01, ms * 0.002}};
+  // Ip: zero for fluid that does not spin with the shaft, up to 2 Id for a
+  // part that does (a heavier impeller, a balancing disk): left to the fit,
+  // so that a spinning mass needs no gyroscopic change beside it.
+  c.params = {{"kg", 0.0, 0.0, 0.5 * mr, ms}, {"Id", 0.0, 0.0, 0.5 * mr * 0.01, ms * 0.002}, {"Ip", 0.0, 0.0, 1.1 * mr * 0.01, ms * 0.004}};
   c.apply = [node](const std::vector<double>& x, PlantVariant& v) {
-    v.plant.disks.push_back({"added_mass_node" + std::to_string(node), node, x[0], x[1], 0.0});
+    v.plant.disks.push_back({"added_mass_node" + std::to_string(node), node, x[0], x[1], x[2]});
   };
-  c.describe = [](const std::vector<double>& x) { return json{{"kg", x[0]}, {"Id", x[1]}}; };
+  c.describe = [](const std::vector<double>& x) { return json{{"kg", x[0]}, {"Id", x[1]}, {"Ip", x[2]}}; };
   c.signature = "modes with motion at the node lowered in frequency (fluid or attached inertia)";
   return c;
 }

@@ -682,6 +682,43 @@ class Selector {
     }
   }
 
+  // Parsimony (issue 18): greedy steps can take a wrong first piece (an
+  // update near its bound, a mass at the wrong node) and patch it with
+  // more. With two or more pieces selected, the best single physics on the
+  // nominal model (one selection step from there) replaces them all when
+  // it fits both halves at least as well by the penalised criterion.
+  // Returns the id of the one that replaced them.
+  std::optional<std::string> replace_by_single(std::vector<Selected>& sel, const std::vector<Candidate>& physics) {
+    int claims = 0, p_sel = 0;
+    for (const auto& s : sel) {
+      if (!s.c.is_update) ++claims;
+      p_sel += static_cast<int>(s.c.params.size());
+    }
+    if (sel.size() < 2 || claims < 1) return std::nullopt;
+    const PlantVariant cur = build(sel);
+    const double cfs = chi2(cur, fit_), cvs = chi2(cur, val_);
+    const std::optional<Trial> t = step({}, {}, physics);
+    if (!t || t->c2) return std::nullopt;
+    const double p1 = static_cast<double>(t->c->params.size());
+    const double pen = penalty_per_param_;
+    progress("parsimony: " + t->c->id + fmt(" alone: chi2 fit %.6g val %.6g; ", t->chi2_fit, t->chi2_val) +
+             fmt("the %.0f pieces selected: %.6g / ", static_cast<double>(sel.size()), cfs) + fmt("%.6g", cvs));
+    if (t->chi2_fit + pen * p1 > cfs + pen * p_sel || t->chi2_val + pen * p1 > cvs + pen * p_sel) return std::nullopt;
+    Selected one;
+    one.c = *t->c;
+    one.x = t->x;
+    one.report.physics = t->c->physics;
+    one.report.chi2_drop_fit = t->gain_fit;
+    one.report.chi2_drop_validation = t->gain_val;
+    one.report.penalty = t->threshold_val;
+    progress(fmt("replaced %.0f pieces by one: ", static_cast<double>(sel.size())) + t->c->id);
+    sel.clear();
+    sel.push_back(std::move(one));
+    refit_all(sel);
+    prune(sel);
+    return t->c->id;
+  }
+
   // What the catalogue cannot express (issue 18, pattern 3): an extra mode
   // of a part attached to the rotor gets "explained" by several catalogue
   // pieces and parameter updates. The challenger is one resonant
@@ -894,18 +931,22 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   progress("located " + std::to_string(res.mismatches.size()) + " mismatch band(s)");
 
   // 2. Select: updates and physics in one greedy loop, updates preferred.
-  std::vector<Selected> sel;
-  const std::vector<Candidate> updates = update_candidates(nominal);
-  for (int steps = 0; !res.mismatches.empty() && steps < options.max_steps; ++steps) {
+  // The physics candidates are proposed from the residual of a variant.
+  auto view_of = [&](const PlantVariant& v) {
     ResidualView view;
     view.measured = &eval.measured();
-    view.model_h = eval.model_h(sel_engine.build(sel), sel_engine.all_lines());
+    view.model_h = eval.model_h(v, sel_engine.all_lines());
     for (size_t e = 0; e < measured.entries.size(); ++e) {
       std::vector<double> s(measured.freq_hz.size());
       for (size_t l = 0; l < s.size(); ++l) s[l] = eval.sigma(e, l);
       view.sigma.push_back(std::move(s));
     }
-    const std::vector<Candidate> physics = physics_candidates(nominal, view);
+    return view;
+  };
+  std::vector<Selected> sel;
+  const std::vector<Candidate> updates = update_candidates(nominal);
+  for (int steps = 0; !res.mismatches.empty() && steps < options.max_steps; ++steps) {
+    const std::vector<Candidate> physics = physics_candidates(nominal, view_of(sel_engine.build(sel)));
     const double nrmse_before = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
     auto t = sel_engine.step(sel, updates, physics);
     if (!t) break;
@@ -939,6 +980,16 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     sel_engine.refine_locations(sel);
     sel_engine.prune(sel);
     if (sel.size() != before_prune && !sel.empty()) sel_engine.refit_all(sel);
+  }
+  if (!sel.empty()) {
+    // Parsimony: one physics on the nominal model against the whole selection.
+    const PlantVariant nominal_variant = sel_engine.build({});
+    if (const auto id = sel_engine.replace_by_single(sel, physics_candidates(nominal, view_of(nominal_variant))))
+      for (auto& s : sel)
+        if (s.c.id == *id) {
+          s.report.nrmse_before = nrmse_of(eval.model_frf(nominal_variant), measured);
+          s.report.nrmse_after = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
+        }
   }
   std::optional<Selector::Attachment> attached;
   if (!res.mismatches.empty()) {
