@@ -719,6 +719,41 @@ class Selector {
     return t->c->id;
   }
 
+  // Confusable physics (issue 18): for each physics claim, the best physics
+  // of another kind fitted in its place (the other pieces held). Where the
+  // claim does not fit decisively better on both halves (chi2 lower by more
+  // than 2 ln 100: a likelihood ratio of 100), one recording cannot tell
+  // the two apart and the other is reported beside it. The comparison is
+  // of the fits, not penalised: which of two equal fits is the simpler one
+  // parsimony has already decided by choosing the claim.
+  struct Alternative {
+    std::string claim_id;
+    Candidate c;
+    std::vector<double> x;
+    double delta_fit = 0.0, delta_val = 0.0;  // chi2 of the alternative minus the claim's
+  };
+  std::vector<Alternative> alternatives(const std::vector<Selected>& sel, const std::vector<Candidate>& physics) {
+    constexpr double kDecisive = 2.0 * 4.605170185988092;  // 2 ln 100
+    std::vector<Alternative> out;
+    const PlantVariant cur = build(sel);
+    const double cfs = chi2(cur, fit_), cvs = chi2(cur, val_);
+    for (size_t k = 0; k < sel.size(); ++k) {
+      if (sel[k].c.is_update) continue;
+      std::vector<Selected> others = sel;
+      others.erase(others.begin() + static_cast<long>(k));
+      std::vector<Candidate> pool;
+      for (const auto& c : physics)
+        if (c.physics != sel[k].c.physics && c.physics != "parameter_update") pool.push_back(c);
+      const std::optional<Trial> t = step(others, {}, pool);
+      if (!t || t->c2) continue;
+      const double df = t->chi2_fit - cfs, dv = t->chi2_val - cvs;
+      progress("alternative to " + sel[k].c.id + ": " + t->c->id + fmt(" chi2 %+.4g (fit), %+.4g (held-out)", df, dv));
+      if (df > kDecisive && dv > kDecisive) continue;
+      out.push_back({sel[k].c.id, *t->c, t->x, df, dv});
+    }
+    return out;
+  }
+
   // What the catalogue cannot express (issue 18, pattern 3): an extra mode
   // of a part attached to the rotor gets "explained" by several catalogue
   // pieces and parameter updates. The challenger is one resonant
@@ -992,14 +1027,10 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
         }
   }
   std::optional<Selector::Attachment> attached;
-  if (!res.mismatches.empty()) {
-    const size_t before = sel.size();
-    attached = sel_engine.attachment_challenge(sel);
-    if (sel.size() != before && !sel.empty()) {
-      sel_engine.refit_all(sel);
-      sel_engine.prune(sel);
-    }
-  }
+  if (!res.mismatches.empty()) attached = sel_engine.attachment_challenge(sel);
+  std::vector<Selector::Alternative> alternatives;
+  if (!sel.empty()) alternatives = sel_engine.alternatives(sel, physics_candidates(nominal, view_of(sel_engine.build(sel))));
+
 
   // 3. Report.
   res.improved = sel_engine.build(sel);
@@ -1027,6 +1058,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   res.chi2_per_line_before = cb.chi2 / total_lines;
   res.chi2_per_line_after = ca.chi2 / total_lines;
 
+  std::vector<std::string> alt_story;
   for (const auto& s : sel) {
     if (s.c.is_update) {
       for (const auto& ch : s.c.changes(s.x)) res.updated_parameters.push_back(ch);
@@ -1037,6 +1069,16 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     e.location = s.c.location;
     e.evidence = s.c.signature + fmt("; chi2 on the fit lines -%.4g, on the held-out lines -%.4g (penalty %.4g)", e.chi2_drop_fit,
                                      e.chi2_drop_validation, e.penalty);
+    for (const auto& a : alternatives) {
+      if (a.claim_id != s.c.id) continue;
+      e.alternatives.push_back(nlohmann::json{{"physics", a.c.physics},
+                                {"parameters", a.c.describe(a.x)},
+                                {"location", a.c.location},
+                                {"chi2_difference", {{"fit", a.delta_fit}, {"held_out", a.delta_val}}},
+                                {"evidence", a.c.signature}});
+      alt_story.push_back("One recording cannot tell " + s.c.physics + " at " + s.c.location.dump() + " from " + a.c.physics + " at " +
+                          a.c.location.dump() + fmt(" (chi2 differs by %.3g / %.3g on the fit / held-out lines): both are reported.", a.delta_fit, a.delta_val));
+    }
     res.explanations.push_back(e);
   }
 
@@ -1075,6 +1117,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     if (std::abs(ch.to - ch.from) > 1e-3 * std::abs(ch.from))
       res.story.push_back("Parameter " + ch.path + fmt(" corrected from %.5g to %.5g (x%.3f).", ch.from, ch.to, ch.from != 0 ? ch.to / ch.from : 0.0));
   for (const auto& e : res.explanations) res.story.push_back("Missing physics: " + e.physics + " " + e.parameters.dump() + " at " + e.location.dump() + ".");
+  res.story.insert(res.story.end(), alt_story.begin(), alt_story.end());
   for (const auto& m : res.modes) {
     if (m.status == "extra")
       res.story.push_back(fmt("Mode at %.1f Hz (zeta %.1f %%) ", m.improved_f_hz, 100 * m.improved_zeta) + "is in the recording but not in the model: " + m.label + ".");
@@ -1111,7 +1154,8 @@ nlohmann::json explain_to_json(const ExplainResult& r) {
                                    {"location", e.location},
                                    {"nrmse_before", e.nrmse_before},
                                    {"nrmse_after", e.nrmse_after},
-                                   {"evidence", e.evidence}});
+                                   {"evidence", e.evidence},
+                                   {"alternatives", e.alternatives}});
   for (const auto& m : r.unexplained) {
     json j = band_json(m, false);
     j["kind"] = m.kind;

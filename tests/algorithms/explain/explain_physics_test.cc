@@ -103,6 +103,41 @@ TEST(ExplainPhysics, Gyroscopic) {
   EXPECT_LT(r.nrmse_after, 1.3 * r.noise_floor_nrmse);
 }
 
+// Two physics this recording cannot tell apart: with one spinning disk
+// (the others' Ip zero in model and truth), tripling its Ip is exactly the
+// gyroscopic factor 3 and exactly a spinning added mass (kg 0, Id 0, Ip
+// 2 Ip0) at its node. One is named, the other reported as its alternative.
+TEST(ExplainPhysics, IndistinguishablePhysicsAreReportedAsAlternatives) {
+  PlantModel nominal = rotor();
+  ASSERT_GE(nominal.disks.size(), 2u);
+  size_t spinning = 0;
+  for (size_t k = 0; k < nominal.disks.size(); ++k)
+    if (nominal.disks[k].ip_kg_m2 > nominal.disks[spinning].ip_kg_m2) spinning = k;
+  for (size_t k = 0; k < nominal.disks.size(); ++k)
+    if (k != spinning) nominal.disks[k].ip_kg_m2 = 0.0;
+  PlantVariant t{nominal, 0.0};
+  t.plant.disks[spinning].ip_kg_m2 *= 3.0;
+  const FrfData meas = testing::noisy_recording(t, frequency_grid(2.0, 600.0, 2.0), 47);
+  const ExplainResult r = explain(nominal, meas);
+  ASSERT_EQ(r.explanations.size(), 1u) << explain_to_json(r)["explanations"].dump();
+  const Explanation& e = r.explanations[0];
+  const std::string other = e.physics == "gyroscopic" ? "added_mass" : "gyroscopic";
+  ASSERT_TRUE(e.physics == "gyroscopic" || e.physics == "added_mass") << e.physics;
+  bool found = false;
+  for (const auto& a : e.alternatives) found = found || a["physics"] == other;
+  EXPECT_TRUE(found) << e.physics << " named; alternatives " << e.alternatives.dump();
+  EXPECT_LT(r.nrmse_after, 1.3 * r.noise_floor_nrmse);
+}
+
+// Clear cases carry no alternatives: the gyroscopic effect of every disk
+// is decisively not a mass or a seal.
+TEST(ExplainPhysics, ClearPhysicsHasNoAlternatives) {
+  PlantVariant t{rotor(), 0.0};
+  for (auto& d : t.plant.disks) d.ip_kg_m2 *= 3.0;
+  const ExplainResult r = explain_concealed(t, 44);
+  for (const auto& e : r.explanations) EXPECT_TRUE(e.alternatives.empty()) << e.physics << ": " << e.alternatives.dump();
+}
+
 TEST(ExplainPhysics, SensorNonCollocation) {
   PlantVariant t{rotor(), 0.0};
   for (auto& s : t.plant.sensors)

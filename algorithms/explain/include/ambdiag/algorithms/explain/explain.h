@@ -72,6 +72,10 @@ struct Explanation {
   double nrmse_before = 0.0, nrmse_after = 0.0;  // whole matrix, before and after this step
   double chi2_drop_fit = 0.0, chi2_drop_validation = 0.0, penalty = 0.0;
   std::string evidence;
+  // Other physics this recording cannot tell apart from this one (fitted in
+  // its place, chi2 within 2 ln 100 on a half): {physics, parameters,
+  // location, chi2_difference {fit, held_out}, evidence}.
+  nlohmann::json alternatives = nlohmann::json::array();
 };
 
 struct EntryFit {
