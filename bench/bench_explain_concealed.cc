@@ -70,6 +70,8 @@ int variants(const ambdiag::PlantModel& reference, int n, int first, const std::
         std::printf("%-38s %-4s CPU %5.2f s  chi2/value %6.1f  NRMSE %.4f -> %.4f  truth: %s%s\n", c.name.c_str(),
                     fail.empty() ? "met" : "FAIL", cpu, c.chi2_per_value_before, r.nrmse_before, r.nrmse_after, c.drawn.c_str(),
                     c.discarded ? (" [" + std::to_string(c.discarded) + " draws discarded]").c_str() : "");
+        if (fail.empty() && effect == "added_mass")  // the Id against the truth's (a small Id is judged against Id_floor)
+          std::printf("    explain: %s\n", said(r).c_str());
         if (!fail.empty()) {
           std::printf("    explain: %s\n", said(r).c_str());
           for (const auto& f : fail) std::printf("    - %s\n", f.c_str());
