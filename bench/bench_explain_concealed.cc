@@ -42,7 +42,7 @@ std::string said(const ambdiag::ExplainResult& r) {
   return s;
 }
 
-int variants(const ambdiag::PlantModel& reference, int n, int first, const std::vector<std::string>& only) {
+int variants(const ambdiag::PlantModel& reference, int n, int first, const std::vector<std::string>& only, bool verbose) {
   struct Tally {
     int runs = 0, passes = 0, discarded = 0;
     double worst_cpu = 0.0;
@@ -56,7 +56,10 @@ int variants(const ambdiag::PlantModel& reference, int n, int first, const std::
         const ambdiag::testing::ConcealedCase c =
             ambdiag::testing::concealed_case_variant(reference, machine, effect, static_cast<unsigned>(seed));
         const double c0 = cpu_seconds();
-        const ambdiag::ExplainResult r = ambdiag::explain(c.nominal, c.measured);
+        ambdiag::ExplainOptions opt;
+        if (verbose)
+          opt.progress = [c0](const std::string& s) { std::fprintf(stderr, "  [cpu %6.2f s] %s\n", cpu_seconds() - c0, s.c_str()); };
+        const ambdiag::ExplainResult r = ambdiag::explain(c.nominal, c.measured, opt);
         const double cpu = cpu_seconds() - c0;
         const std::vector<std::string> fail = ambdiag::testing::concealed_verdict(c, r);
         for (Tally* t : {&per_effect[effect], &per_machine[machine]}) {
@@ -112,9 +115,9 @@ int main(int argc, char** argv) {
       ++i;
     }
   }
-  if (n_variants > 0) return variants(ambdiag::read_plant_file(dir + "/reference_pump/plant.json"), n_variants, first, only);
   const bool verbose = !only.empty() && only.front() == "-v";
   if (verbose) only.erase(only.begin());
+  if (n_variants > 0) return variants(ambdiag::read_plant_file(dir + "/reference_pump/plant.json"), n_variants, first, only, verbose);
   const ambdiag::PlantModel reference = ambdiag::read_plant_file(dir + "/reference_pump/plant.json");
   int passed = 0, run = 0;
   for (const auto& machine : ambdiag::testing::concealed_machines()) {

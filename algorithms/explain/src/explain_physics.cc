@@ -337,8 +337,21 @@ Candidate gyroscopic(const PlantModel& plant) {
   return c;
 }
 
-// A new link to ground at a node: kxx = kyy = k, cxx = cyy = c.
-Candidate node_support(int node, double kref, double cref) {
+bool has_link(const PlantModel& plant, int node) {
+  for (const auto& l : plant.links)
+    if (l.node == node) return true;
+  return false;
+}
+
+// A new link to ground at a node: kxx = kyy = k, cxx = cyy = c, up to ten
+// times the model's stiffest and most damped link.
+Candidate node_support(const PlantModel& plant, int node) {
+  double kref = 1e5, cref = 100.0;
+  for (const auto& l : plant.links) {
+    const LinkCoefficients at = l.at_speed(plant.speed_rpm);
+    kref = std::max({kref, std::abs(at[idx(LinkCoef::kxx)]), std::abs(at[idx(LinkCoef::kyy)])});
+    cref = std::max({cref, std::abs(at[idx(LinkCoef::cxx)]), std::abs(at[idx(LinkCoef::cyy)])});
+  }
   Candidate c;
   c.physics = "coupling_stiffness";
   c.touches_rotor = true;
@@ -450,16 +463,8 @@ std::vector<Candidate> physics_candidates(const PlantModel& plant, const Residua
   if (!plant.disks.empty()) out.push_back(gyroscopic(plant));
   // A stiffness to ground where the model has no link at all (a coupling or
   // support it lacks, e.g. the drive-end coupling left out): every node.
-  double kref = 0.0, cref = 0.0;
-  for (const auto& l : plant.links) {
-    const LinkCoefficients at = l.at_speed(plant.speed_rpm);
-    kref = std::max({kref, std::abs(at[idx(LinkCoef::kxx)]), std::abs(at[idx(LinkCoef::kyy)])});
-    cref = std::max({cref, std::abs(at[idx(LinkCoef::cxx)]), std::abs(at[idx(LinkCoef::cyy)])});
-  }
-  std::set<int> linked;
-  for (const auto& l : plant.links) linked.insert(l.node);
   for (int n = 0; n < plant.node_count(); ++n)
-    if (!linked.count(n)) out.push_back(node_support(n, std::max(kref, 1e5), std::max(cref, 100.0)));
+    if (!has_link(plant, n)) out.push_back(node_support(plant, n));
   // Structural damping beyond its update bounds is not offered: the update
   // covers it and a second factor would only compound with it.
   return out;
@@ -492,6 +497,13 @@ std::vector<Candidate> neighbour_candidates(const PlantModel& plant, const Candi
     const int node = c.location["node"].get<int>();
     for (int n : {node - 2, node - 1, node + 1, node + 2})
       if (n >= 0 && n < plant.node_count()) out.push_back(added_mass(plant, n));
+  }
+  // A new support: a neighbouring node without a link (the screen cannot
+  // tell a large stiffness at the shaft end from one a node further in).
+  if (c.physics == "coupling_stiffness" && c.location.value("link", std::string()) == "none in the model") {
+    const int node = c.location["node"].get<int>();
+    for (int n : {node - 2, node - 1, node + 1, node + 2})
+      if (n >= 0 && n < plant.node_count() && !has_link(plant, n)) out.push_back(node_support(plant, n));
   }
   return out;
 }
