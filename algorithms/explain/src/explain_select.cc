@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 
 #include <Eigen/Dense>
 
@@ -583,10 +584,13 @@ class Selector {
   // both halves better with the other selections held.
   void refine_locations(std::vector<Selected>& sel) {
     merge_between(sel);
+    std::set<std::string> visited;  // a piece never moves back to where it was (moves could oscillate)
+    for (const auto& s : sel) visited.insert(s.c.id);
     for (int round = 0; round < 4; ++round) {
       bool moved = false;
       for (size_t k = 0; k < sel.size(); ++k) {
         for (const Candidate& alt : neighbour_candidates(nominal_, sel[k].c)) {
+          if (visited.count(alt.id)) continue;
           const PlantVariant cur = build(sel);
           const double cf = chi2(cur, fit_), cv = chi2(cur, val_);
           std::vector<Selected> others = sel;
@@ -594,6 +598,7 @@ class Selector {
           const Trial t = try_candidate(others, alt, nullptr, cf, cv, &sel[k].x);
           if (t.chi2_fit < cf && t.chi2_val < cv) {
             progress("moved " + sel[k].c.id + " to " + alt.id);
+            visited.insert(alt.id);
             sel[k].c = alt;
             sel[k].x = t.x;
             moved = true;
@@ -1074,6 +1079,10 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     progress("accepted " + t->c->id + (t->c2 ? " + " + t->c2->id : std::string()) +
              fmt(": chi2 on held-out lines -%.4g (penalty %.4g), nrmse %.4f", t->gain_val, t->threshold_val, nrmse_after));
   }
+  // The catalogue's limits first: when one resonant attachment fits as well
+  // as the whole selection, the selection goes, and nothing is left to refine.
+  std::optional<Selector::Attachment> attached;
+  if (!res.mismatches.empty()) attached = sel_engine.attachment_challenge(sel);
   if (!sel.empty()) {
     sel_engine.fold_updates(sel);
     sel_engine.refit_all(sel);
@@ -1092,8 +1101,6 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
           s.report.nrmse_after = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
         }
   }
-  std::optional<Selector::Attachment> attached;
-  if (!res.mismatches.empty()) attached = sel_engine.attachment_challenge(sel);
   std::vector<Selector::Alternative> alternatives;
   if (!sel.empty()) alternatives = sel_engine.alternatives(sel, physics_candidates(nominal, view_of(sel_engine.build(sel))));
 
