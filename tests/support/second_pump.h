@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cmath>
+#include <initializer_list>
 #include <string>
 
 #include "ambdiag/core/plant_model.h"
@@ -30,15 +31,17 @@ namespace detail {
 
 // A fluid-seal link whose stiffnesses grow with rpm^2 and damping linearly
 // from 15 % at standstill (the law of the reference pump's tables, which
-// are Childs-type short-seal coefficients), given at the nominal speed.
+// are Childs-type short-seal coefficients), given at the nominal speed
+// `rpm0`, tabulated at `table_rpm` (strictly increasing).
 inline Link fluid_link(const std::string& name, const std::string& kind, int node, double k, double k_cross,
-                       double c, double c_cross, double m) {
+                       double c, double c_cross, double m, double rpm0 = kSecondPumpRpm,
+                       std::initializer_list<double> table_rpm = {0.0, 1000.0, 2000.0, 3000.0, kSecondPumpRpm, 4200.0}) {
   Link l;
   l.name = name;
   l.kind = kind;
   l.node = node;
   auto coef_at = [&](double rpm) {
-    const double s = rpm / kSecondPumpRpm;
+    const double s = rpm / rpm0;
     LinkCoefficients v{};
     v[static_cast<int>(LinkCoef::kxx)] = v[static_cast<int>(LinkCoef::kyy)] = k * s * s;
     v[static_cast<int>(LinkCoef::kxy)] = k_cross * s * s;
@@ -49,8 +52,8 @@ inline Link fluid_link(const std::string& name, const std::string& kind, int nod
     v[static_cast<int>(LinkCoef::mxx)] = v[static_cast<int>(LinkCoef::myy)] = m;
     return v;
   };
-  l.coef = coef_at(kSecondPumpRpm);
-  for (double rpm : {0.0, 1000.0, 2000.0, 3000.0, kSecondPumpRpm, 4200.0}) {
+  l.coef = coef_at(rpm0);
+  for (double rpm : table_rpm) {
     LinkTableRow row;
     row.rpm = rpm;
     const LinkCoefficients v = coef_at(rpm);

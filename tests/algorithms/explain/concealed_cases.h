@@ -149,32 +149,7 @@ inline PlantModel third_pump(const PlantModel& reference) {
   p.disks.push_back({"impeller_2", 13, 1.7, 0.0022, 0.0037});
   p.disks.push_back({"amb_B_laminations", 19, 5.0, 0.0075, 0.0083});
   auto fluid = [rpm0](const std::string& name, const std::string& kind, int node, double k, double kc, double c, double cc, double m) {
-    Link l;
-    l.name = name;
-    l.kind = kind;
-    l.node = node;
-    auto coef_at = [&](double rpm) {
-      const double s = rpm / rpm0;
-      LinkCoefficients v{};
-      v[static_cast<size_t>(LinkCoef::kxx)] = v[static_cast<size_t>(LinkCoef::kyy)] = k * s * s;
-      v[static_cast<size_t>(LinkCoef::kxy)] = kc * s * s;
-      v[static_cast<size_t>(LinkCoef::kyx)] = -kc * s * s;
-      v[static_cast<size_t>(LinkCoef::cxx)] = v[static_cast<size_t>(LinkCoef::cyy)] = c * (0.15 + 0.85 * s);
-      v[static_cast<size_t>(LinkCoef::cxy)] = cc * s;
-      v[static_cast<size_t>(LinkCoef::cyx)] = -cc * s;
-      v[static_cast<size_t>(LinkCoef::mxx)] = v[static_cast<size_t>(LinkCoef::myy)] = m;
-      return v;
-    };
-    l.coef = coef_at(rpm0);
-    for (double rpm : {0.0, 1000.0, 2000.0, rpm0, 3000.0}) {
-      LinkTableRow row;
-      row.rpm = rpm;
-      const LinkCoefficients v = coef_at(rpm);
-      for (int i = 0; i < kLinkCoefCount; ++i)
-        if (i != static_cast<int>(LinkCoef::mxx) && i != static_cast<int>(LinkCoef::myy)) row.values[static_cast<size_t>(i)] = v[static_cast<size_t>(i)];
-      l.table.push_back(row);
-    }
-    return l;
+    return detail::fluid_link(name, kind, node, k, kc, c, cc, m, rpm0, {0.0, 1000.0, 2000.0, rpm0, 3000.0});
   };
   p.links.clear();
   p.links.push_back(fluid("impeller_seal", "seal", 9, 1.9e5, 2.0e4, 420.0, 60.0, 0.6));
