@@ -309,4 +309,11 @@ std::vector<cd> RotorScreen::residual_change(const LowRankChange& ch, const Cand
   return out;
 }
 
+std::vector<cd> RotorScreen::residual_with(const LowRankChange& ch, const Candidate& c, const std::vector<double>& x,
+                                           const std::vector<int>& lines, const std::vector<cd>& base) const {
+  std::vector<cd> d = residual_change(ch, c, x, lines);
+  for (size_t k = 0; k < d.size(); ++k) d[k] += base[k];
+  return d;
+}
+
 }  // namespace ambdiag::detail

@@ -52,6 +52,10 @@ class RotorScreen {
   // PlantFrfEvaluator::residual) when c takes values x.
   std::vector<std::complex<double>> residual_change(const LowRankChange& ch, const Candidate& c, const std::vector<double>& x,
                                                     const std::vector<int>& lines) const;
+  // The weighted residual with c at x: `base` (the current rotor's residual
+  // on the same lines) plus residual_change.
+  std::vector<std::complex<double>> residual_with(const LowRankChange& ch, const Candidate& c, const std::vector<double>& x,
+                                                  const std::vector<int>& lines, const std::vector<std::complex<double>>& base) const;
 
  private:
   PlantVariant current_;

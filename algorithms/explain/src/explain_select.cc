@@ -77,6 +77,9 @@ class Selector {
     for (size_t l = 0; l < n; ++l) all_.push_back(static_cast<int>(l));
     const double n_real = 2.0 * static_cast<double>(eval.measured().entries.size() * fit_.size());
     penalty_per_param_ = 0.5 * std::log(n_real);
+    // Lines of the linearised/grid screening: every other fit line when
+    // there are many (ranking needs the shape, not every line).
+    for (size_t k = 0; k < fit_.size(); k += fit_.size() > 200 ? 2 : 1) screen_lines_.push_back(fit_[k]);
   }
 
   PlantVariant build(const std::vector<Selected>& sel, const Candidate* extra = nullptr, const std::vector<double>* xe = nullptr,
@@ -230,9 +233,7 @@ class Selector {
     if (!slot.second) return out;
     const detail::LowRankChange& ch = *slot.second;
     auto resid = [&](const std::vector<double>& x, const std::vector<int>& lines, const std::vector<std::complex<double>>& base) {
-      auto d = scr.residual_change(ch, c, x, lines);
-      for (size_t k = 0; k < d.size(); ++k) d[k] += base[k];
-      return d;
+      return scr.residual_with(ch, c, x, lines, base);
     };
     out.ok = true;
     const std::vector<double> x0 = neutral(c);
@@ -388,8 +389,6 @@ class Selector {
     std::vector<Screened> rotor;
     detail::RotorScreen& scr = screen_for(sel, cur);
     const auto rv0 = residual(cur, val_);
-    screen_lines_.clear();
-    for (size_t k = 0; k < fit_.size(); k += fit_.size() > 200 ? 2 : 1) screen_lines_.push_back(fit_[k]);
     screen_r0_ = residual(cur, screen_lines_);
     screen_cf_ = chi2_of(screen_r0_);
     std::vector<Screened> lowrank[2];  // updates, physics with a low-rank model
@@ -821,14 +820,13 @@ class Selector {
     // Worth a look only where the updates leave more than the noise.
     if (cf0 - static_cast<double>(r0.size()) < threshold(3, cf0)) return std::nullopt;
     detail::RotorScreen scr(base, eval_);
-    screen_lines_.clear();
-    for (size_t k = 0; k < fit_.size(); k += fit_.size() > 200 ? 2 : 1) screen_lines_.push_back(fit_[k]);
     const auto rs0 = residual(base, screen_lines_);
     std::optional<Attachment> best;
     const int nodes = nominal_.node_count();
     struct Start {
       double chi2;
-      int node;
+      Candidate c;
+      detail::LowRankChange ch;
       std::vector<double> x;
     };
     std::vector<Start> starts;
@@ -843,9 +841,7 @@ class Selector {
       const std::optional<detail::LowRankChange> ch = scr.change_of(c);
       if (!ch) continue;
       auto resid_on = [&](const std::vector<double>& x, const std::vector<int>& lines, const std::vector<std::complex<double>>& r_base) {
-        auto d = scr.residual_change(*ch, c, x, lines);
-        for (size_t k = 0; k < d.size(); ++k) d[k] += r_base[k];
-        return d;
+        return scr.residual_with(*ch, c, x, lines, r_base);
       };
       // A grid first: 150 frequencies (geometric over the band, 4.7 % apart
       // over three decades) x 4 damping ratios (0.5-4 %) x 4 masses (1-8 %
@@ -874,7 +870,7 @@ class Selector {
       for (const auto& slot : bin_best)
         if (!slot.second.empty()) picks.push_back(slot.second);
       // A short fit on the screen lines from each ranks the node at its optimum.
-      Start st{std::numeric_limits<double>::infinity(), n, {}};
+      Start st{std::numeric_limits<double>::infinity(), c, *ch, {}};
       for (const auto& x0 : picks) {
         std::vector<FitParameter> params = c.params;
         for (size_t i = 0; i < params.size(); ++i) params[i].initial = x0[i];
@@ -890,12 +886,9 @@ class Selector {
     std::sort(starts.begin(), starts.end(), [](const Start& a, const Start& b) { return a.chi2 < b.chi2; });
     if (starts.size() > 3) starts.resize(3);
     for (const auto& st : starts) {
-      Candidate c = resonant_attachment(nominal_, st.node, f.front(), f.back());
-      const std::optional<detail::LowRankChange> ch = scr.change_of(c);
+      const Candidate& c = st.c;
       auto resid = [&](const std::vector<double>& x, const std::vector<int>& lines, const std::vector<std::complex<double>>& base_r) {
-        auto d = scr.residual_change(*ch, c, x, lines);
-        for (size_t k = 0; k < d.size(); ++k) d[k] += base_r[k];
-        return d;
+        return scr.residual_with(st.ch, c, x, lines, base_r);
       };
       std::vector<FitParameter> params = c.params;
       for (size_t i = 0; i < params.size(); ++i) params[i].initial = st.x[i];
@@ -942,10 +935,8 @@ class Selector {
   int evaluations_ = 0;
   std::map<std::string, std::vector<std::complex<double>>> dcache_;
   std::unique_ptr<detail::RotorScreen> screen_;
-  // Lines of the linearised/grid screening (every other fit line when there
-  // are many: ranking needs the shape, not every line) and the residual there.
   std::map<std::string, std::pair<double, std::vector<double>>> stale_gain_;  // lazy greedy bounds on this screen
-  std::vector<int> screen_lines_;
+  std::vector<int> screen_lines_;  // set once in the constructor; the current residual there:
   std::vector<std::complex<double>> screen_r0_;
   double screen_cf_ = 0.0;
   std::string screen_key_;
