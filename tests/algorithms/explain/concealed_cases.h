@@ -359,6 +359,20 @@ inline void record(ConcealedCase& c, unsigned noise_seed) {
     }
 }
 
+// The truth's coupling link i left out of the nominal model: the expected
+// answer is a coupling stiffness at its node with the truth's coefficients
+// (returned, at the truth's speed).
+inline LinkCoefficients omit_coupling(ConcealedCase& c, size_t i) {
+  const Link& l = c.truth.links[i];
+  const LinkCoefficients at = l.at_speed(c.truth.speed_rpm);
+  c.nominal.links.erase(c.nominal.links.begin() + static_cast<long>(i));
+  c.physics = TruthPhysics{"coupling_stiffness",
+                           {{"link", l.name}, {"node", l.node}},
+                           {{"k", at[static_cast<size_t>(LinkCoef::kxx)]}, {"c", at[static_cast<size_t>(LinkCoef::cxx)]}}};
+  c.note = "the drive-end coupling link (node " + std::to_string(l.node) + ") left out of the nominal model";
+  return at;
+}
+
 }  // namespace concealed_detail
 
 // One case: `machine` in concealed_machines(), `effect` in concealed_effects().
@@ -403,14 +417,7 @@ inline ConcealedCase concealed_case(const PlantModel& reference, const std::stri
     c.physics = TruthPhysics{"seal_cross_coupling", {{"link", link}, {"node", l.node}}, {{"k", k}, {"c", cc}}};
     c.note = "seal cross-coupling (kxy = -kyx, cxy = -cyx) added at one seal";
   } else if (effect == "coupling_omitted") {
-    const size_t i = link_named(plant, "coupling");
-    const Link& l = plant.links[i];
-    const LinkCoefficients at = l.at_speed(plant.speed_rpm);
-    c.nominal.links.erase(c.nominal.links.begin() + static_cast<long>(i));
-    c.physics = TruthPhysics{"coupling_stiffness",
-                             {{"link", l.name}, {"node", l.node}},
-                             {{"k", at[static_cast<size_t>(LinkCoef::kxx)]}, {"c", at[static_cast<size_t>(LinkCoef::cxx)]}}};
-    c.note = "the drive-end coupling link (node " + std::to_string(l.node) + ") left out of the nominal model";
+    concealed_detail::omit_coupling(c, link_named(plant, "coupling"));
   } else if (effect == "absorber") {
     // 6 % of the rotor mass at the balance-piston node, 1 % damping, tuned
     // a little below bending 2 (reference 596/614 Hz, second pump about
@@ -554,12 +561,7 @@ inline ConcealedCase concealed_case_variant(const PlantModel& reference, const s
         for (auto& row : l.table)
           if (row.values[static_cast<size_t>(k)]) *row.values[static_cast<size_t>(k)] *= f;
       }
-      const LinkCoefficients at = l.at_speed(plant.speed_rpm);
-      c.nominal.links.erase(c.nominal.links.begin() + static_cast<long>(i));
-      c.physics = TruthPhysics{"coupling_stiffness",
-                               {{"link", l.name}, {"node", l.node}},
-                               {{"k", at[static_cast<size_t>(LinkCoef::kxx)]}, {"c", at[static_cast<size_t>(LinkCoef::cxx)]}}};
-      c.note = "the drive-end coupling link (node " + std::to_string(l.node) + ") left out of the nominal model";
+      const LinkCoefficients at = concealed_detail::omit_coupling(c, i);
       c.drawn = concealed_detail::fmt("coupling k %.3g N/m (x%.2f of the design)", at[static_cast<size_t>(LinkCoef::kxx)], f);
     } else {  // absorber
       const double len = pos.back() - pos.front();
