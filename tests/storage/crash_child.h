@@ -5,6 +5,7 @@
 #pragma once
 
 #include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace ambdiag::storage::crash {
@@ -24,6 +25,25 @@ inline void report_guard_page_faults(int fd) {
   struct sigaction sa {};
   sa.sa_handler = on_guard_page;
   ::sigaction(SIGSEGV, &sa, nullptr);
+}
+
+// In the parent: what became of a child killed after its report.
+struct Killed {
+  bool reported = false;  // a byte arrived before the child ended
+  char byte = 0;
+  int status = 0;         // from waitpid
+  bool by_sigkill() const { return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL; }
+};
+
+// Waits for the child's report byte on `fd`, kills the child, reaps it and
+// closes `fd`.
+inline Killed kill_after_report(pid_t child, int fd) {
+  Killed k;
+  k.reported = ::read(fd, &k.byte, 1) == 1;
+  ::kill(child, SIGKILL);
+  ::waitpid(child, &k.status, 0);
+  ::close(fd);
+  return k;
 }
 
 }  // namespace ambdiag::storage::crash

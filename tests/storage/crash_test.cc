@@ -50,14 +50,10 @@ TEST(HistorianCrash, KilledInTheMiddleOfABatchLeavesNoHalfBatch) {
     ::_exit(3);  // not reached: the guard page faults first
   }
   ::close(fds[1]);
-  char c = 0;
-  ASSERT_EQ(::read(fds[0], &c, 1), 1) << "the child ended before it got into the batch";
-  EXPECT_EQ(c, 'T');
-  ::kill(child, SIGKILL);
-  int status = 0;
-  ::waitpid(child, &status, 0);
-  ::close(fds[0]);
-  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+  const crash::Killed k = crash::kill_after_report(child, fds[0]);
+  ASSERT_TRUE(k.reported) << "the child ended before it got into the batch";
+  EXPECT_EQ(k.byte, 'T');
+  ASSERT_TRUE(k.by_sigkill());
 
   // Opens (recovering the WAL), consistent, with exactly the first batch.
   auto h = Historian::open(path);

@@ -55,14 +55,10 @@ int check_each_job_all_or_nothing(Historian& h) {
 
 // Waits for the child's report byte, kills it, returns the byte.
 char kill_child_after_report(pid_t child, int fd) {
-  char c = 0;
-  EXPECT_EQ(::read(fd, &c, 1), 1) << "the child ended before it reported";
-  ::kill(child, SIGKILL);
-  int status = 0;
-  ::waitpid(child, &status, 0);
-  ::close(fd);
-  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
-  return c;
+  const crash::Killed k = crash::kill_after_report(child, fd);
+  EXPECT_TRUE(k.reported) << "the child ended before it reported";
+  EXPECT_TRUE(k.by_sigkill());
+  return k.byte;
 }
 
 TEST(HistorianJobsCrash, KilledInsideFinishJobLeavesTheJobRunningWithoutResultOrFiles) {
