@@ -1,11 +1,14 @@
-// The REST routes of the analysis side (rest.md: pumps, models, references,
-// analyses, jobs, explain) and the token check every route but health goes
-// through. Reads use the REST reader pool; writes go to the
-// AnalysisService, which owns the write connection and the job queue.
+// What a route's handler gets (RouteContext), the token check every route
+// but the open ones goes through, and the files that add each feature's
+// routes to the table (route_table.h). Reads use the REST reader pool;
+// writes go to the AnalysisService, which owns the write connection and the
+// job queue.
 #pragma once
 
 #include <httplib.h>
 
+#include <chrono>
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -14,6 +17,7 @@
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/service.h"
 #include "reader_pool.h"
+#include "routes/route_table.h"
 
 namespace ambdiag::server::detail {
 
@@ -42,19 +46,15 @@ struct RouteContext {
   httplib::Response& res;
 };
 
-void get_pump(RouteContext& c, const std::string& pump_id);
-void get_model(RouteContext& c, const std::string& pump_id);
-void put_model(RouteContext& c, const std::string& pump_id);
-void get_models(RouteContext& c, const std::string& pump_id);
-void get_reference(RouteContext& c, const std::string& pump_id);
-void put_reference(RouteContext& c, const std::string& pump_id);
-void get_analysis(RouteContext& c, const std::string& run_id);
-void get_run_file(RouteContext& c, const std::string& run_id, const std::string& name);
-void post_explain(RouteContext& c, const std::string& run_id);
-void get_jobs(RouteContext& c);
-void get_job(RouteContext& c, const std::string& job_id);
-void get_job_file(RouteContext& c, const std::string& job_id, const std::string& name);
-void post_adopt(RouteContext& c, const std::string& job_id);
-void post_cancel(RouteContext& c, const std::string& job_id);
+// The request's body as JSON; InputError naming `what` otherwise.
+nlohmann::json parse_body(const httplib::Request& req, const std::string& what);
+// A positive integer parameter or path segment; InputError naming it.
+std::int64_t positive_integer(const std::string& text, const std::string& what);
+
+// health, pumps, runs, samples, monitoring (read_routes.cc); `started` is the
+// server's start, for health's uptime.
+void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point started);
+// models, references, analyses and their files, explain, jobs (analysis_routes.cc).
+void add_analysis_routes(RouteTable& t);
 
 }  // namespace ambdiag::server::detail

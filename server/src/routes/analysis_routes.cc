@@ -1,4 +1,4 @@
-#include "rest_routes.h"
+#include "routes/route_context.h"
 
 #include <limits>
 
@@ -15,69 +15,9 @@ using nlohmann::json;
 
 std::string run_url(const std::string& run_id) { return "/api/v1/runs/" + url_encode_segment(run_id); }
 
-// A positive integer parameter or path segment; InputError naming it.
-std::int64_t positive_integer(const std::string& text, const std::string& what) {
-  if (text.empty() || text.size() > 15 || text.find_first_not_of("0123456789") != std::string::npos || std::stoll(text) < 1)
-    throw InputError(what + ": '" + text + "' is not a positive integer");
-  return std::stoll(text);
-}
-
-json parse_body(const httplib::Request& req, const std::string& what) {
-  try {
-    return json::parse(req.body);
-  } catch (const json::exception& e) {
-    throw InputError(what + ": the body is not JSON: " + e.what());
-  }
-}
-
 void send_artifact(httplib::Response& res, const storage::JobArtifact& a) {
   res.status = 200;
   res.set_content(a.data, a.content_type);
-}
-
-}  // namespace
-
-void send_json(httplib::Response& res, int status, const json& body) {
-  res.status = status;
-  res.set_content(dump(body), "application/json");
-}
-
-void send_error(httplib::Response& res, int status, const std::string& message) {
-  send_json(res, status, {{"error", message}});
-}
-
-std::optional<Caller> authorize(ReaderPool& pool, const httplib::Request& req, storage::Role needed, bool anonymous_read,
-                                httplib::Response& res) {
-  const std::string header = req.get_header_value("Authorization");
-  std::optional<Caller> caller;
-  if (header.empty()) {
-    if (anonymous_read) caller = Caller{};
-  } else {
-    constexpr std::string_view kBearer = "Bearer ";
-    if (header.size() <= kBearer.size() || header.compare(0, kBearer.size(), kBearer) != 0) {
-      res.set_header("WWW-Authenticate", "Bearer");
-      send_error(res, 401, "Authorization: expected 'Bearer TOKEN'");
-      return std::nullopt;
-    }
-    auto h = pool.acquire();
-    if (const auto t = h->find_token(header.substr(kBearer.size()))) caller = Caller{t->name, t->role};
-    if (!caller) {
-      res.set_header("WWW-Authenticate", "Bearer error=\"invalid_token\"");
-      send_error(res, 401, "unknown or revoked token");
-      return std::nullopt;
-    }
-  }
-  if (!caller) {
-    res.set_header("WWW-Authenticate", "Bearer");
-    send_error(res, 401, "this request needs a token (Authorization: Bearer TOKEN; ambdiag token add)");
-    return std::nullopt;
-  }
-  if (static_cast<int>(caller->role) < static_cast<int>(needed)) {
-    send_error(res, 403, "role '" + storage::to_string(caller->role) + "' of '" + caller->name + "' is too low: " + req.method +
-                             " " + req.path + " needs '" + storage::to_string(needed) + "'");
-    return std::nullopt;
-  }
-  return caller;
 }
 
 void get_pump(RouteContext& c, const std::string& pump_id) {
@@ -220,6 +160,43 @@ void post_cancel(RouteContext& c, const std::string& job_id) {
   c.opt.analysis->cancel_job(id, c.caller.name);
   auto h = c.pool.acquire();
   send_json(c.res, 200, job_json(*h->find_job(id), false));
+}
+
+}  // namespace
+
+void add_analysis_routes(RouteTable& t) {
+  using storage::Role;
+  const auto pump = [](void (*f)(RouteContext&, const std::string&)) {
+    return [f](RouteContext& c, const PathParams& p) { f(c, p.at("pump_id")); };
+  };
+  const auto run = [](void (*f)(RouteContext&, const std::string&)) {
+    return [f](RouteContext& c, const PathParams& p) { f(c, p.at("run_id")); };
+  };
+  const auto job = [](void (*f)(RouteContext&, const std::string&)) {
+    return [f](RouteContext& c, const PathParams& p) { f(c, p.at("job_id")); };
+  };
+  t.add({"GET", "/api/v1/pumps/{pump_id}", Role::viewer, "a pump: model and reference versions, health, active alarms, last run and analysis", pump(get_pump)});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/model", Role::viewer, "the plant JSON of a model version (default: the current one)", pump(get_model),
+         {{"version", "model version (default: the current one)"}}});
+  t.add({"PUT", "/api/v1/pumps/{pump_id}/model", Role::engineer, "a new model version (body: plant JSON); registers the pump", pump(put_model)});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/models", Role::viewer, "every model version of a pump", pump(get_models)});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/reference", Role::viewer, "the pump's reference (or the proposed one)", pump(get_reference)});
+  t.add({"PUT", "/api/v1/pumps/{pump_id}/reference", Role::engineer, "a new reference version from runs (body {\"runs\": [run_id, ...]})",
+         pump(put_reference)});
+  t.add({"GET", "/api/v1/runs/{run_id*}/analysis", Role::viewer, "the run's analysis: status, modes, detection, diagnosis", run(get_analysis)});
+  for (const char* file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg"})
+    t.add({"GET", std::string("/api/v1/runs/{run_id*}/") + file, Role::viewer, std::string("the analysis' ") + file,
+           [file = std::string(file)](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
+           file == std::string("frf.csv") ? "text/csv" : "image/svg+xml"});
+  t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)});
+  t.add({"GET", "/api/v1/jobs", Role::viewer, "jobs, newest first", [](RouteContext& c, const PathParams&) { get_jobs(c); },
+         {{"pump_id", "only this pump's"}, {"run_id", "only this run's"}, {"kind", "analysis, reference or explain"},
+          {"status", "queued, running, done, failed or cancelled"}, {"limit", "at most this many (1..10000)"}}});
+  t.add({"GET", "/api/v1/jobs/{job_id}", Role::viewer, "a job with its result and files", job(get_job)});
+  t.add({"GET", "/api/v1/jobs/{job_id}/files/{name}", Role::viewer, "a file a job made",
+         [](RouteContext& c, const PathParams& p) { get_job_file(c, p.at("job_id"), p.at("name")); }, {}, "application/octet-stream"});
+  t.add({"POST", "/api/v1/jobs/{job_id}/adopt", Role::engineer, "adopt an explain job's improved model as the pump's new model version", job(post_adopt)});
+  t.add({"POST", "/api/v1/jobs/{job_id}/cancel", Role::engineer, "cancel a queued or running job", job(post_cancel)});
 }
 
 }  // namespace ambdiag::server::detail

@@ -1,0 +1,72 @@
+// Every REST route in one table: method, path pattern, the role it needs and
+// what it does. The server dispatches from it, and GET /api/v1/openapi.json
+// is generated from it, so a route cannot be served and undocumented (or the
+// reverse). Each feature adds its routes in its own file (add_*_routes).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ambdiag/storage/service.h"
+
+namespace ambdiag::server::detail {
+
+struct RouteContext;
+
+// Path parameters by name ("pump_id" -> "P-101"), percent-decoded.
+using PathParams = std::map<std::string, std::string>;
+using RouteHandler = std::function<void(RouteContext&, const PathParams&)>;
+
+struct QueryParam {
+  std::string name;
+  std::string description;
+  bool required = false;
+  bool repeated = false;  // ?series=a&series=b
+};
+
+struct Route {
+  std::string method;   // GET (answers HEAD too), POST or PUT
+  // "/api/v1/pumps/{pump_id}/runs": "{name}" matches one non-empty segment,
+  // "{name*}" one or more (a run_id whose '/' came unencoded); one per pattern.
+  std::string pattern;
+  std::optional<storage::Role> role;  // nullopt: open to all (health, metrics)
+  std::string summary;                // one line, for the OpenAPI document
+  RouteHandler handler;
+  std::vector<QueryParam> query = {};
+  std::string response_type = "application/json";
+};
+
+// One segment of a parsed pattern: a literal, or a parameter's name.
+struct PatternSegment {
+  std::string text;
+  bool param = false;
+  bool rest = false;  // "{name*}"
+};
+
+class RouteTable {
+ public:
+  // Throws std::logic_error on a malformed pattern or a duplicate (method,
+  // pattern): both are programming errors caught by every test.
+  void add(Route r);
+
+  struct Found {
+    const Route* route = nullptr;  // null: no route for this method
+    PathParams params;
+    bool path_known = false;       // some route has this path (then 405, not 404)
+    std::string allow;             // "GET, HEAD, PUT" for a 405
+  };
+  // The most specific route (most literal segments) whose pattern the
+  // decoded path segments match.
+  Found find(const std::string& method, const std::vector<std::string>& segments) const;
+
+  const std::vector<Route>& routes() const { return routes_; }
+
+ private:
+  std::vector<Route> routes_;
+  std::vector<std::vector<PatternSegment>> patterns_;  // parsed once, by index
+};
+
+}  // namespace ambdiag::server::detail
