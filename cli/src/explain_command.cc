@@ -46,14 +46,18 @@ PlantVariant read_variant(const std::string& path) {
 }
 
 int run_explain(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--model", "--measured", "--svg", "-o", "--max-steps"}, {"--json"});
+  const Args args(argv, {"--model", "--svg", "-o", "--max-steps"}, {"--json"}, {"--measured"});
   args.expect_positional(0, "");
   const auto model_path = args.option("--model");
-  const auto meas_path = args.option("--measured");
-  if (!model_path || !meas_path) throw UsageError("explain needs --model PLANT.json and --measured FRF.csv");
+  const std::vector<std::string> meas_paths = args.values("--measured");
+  if (!model_path || meas_paths.empty()) throw UsageError("explain needs --model PLANT.json and --measured FRF.csv");
+  const std::string* meas_path = &meas_paths.front();
   const PlantVariant given = read_variant(*model_path);
   if (given.delay_s != 0.0) throw InputError(*model_path + ": acquisition.delay_s: explain starts from a plant without a delay");
   const FrfData meas = read_frf_csv(*meas_path);
+  // Recordings at other speeds judge the explanation (explain.h).
+  std::vector<FrfData> others;
+  for (size_t k = 1; k < meas_paths.size(); ++k) others.push_back(read_frf_csv(meas_paths[k]));
 
   ExplainOptions opt;
   if (auto s = args.number("--max-steps")) {
@@ -62,7 +66,7 @@ int run_explain(const std::vector<std::string>& argv) {
   }
   opt.progress = [](const std::string& s) { std::fprintf(stderr, "explain: %s\n", s.c_str()); };
   const auto t0 = std::chrono::steady_clock::now();
-  const ExplainResult r = explain(given.plant, meas, opt);
+  const ExplainResult r = explain(given.plant, meas, others, opt);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::fprintf(stderr, "explain: %.2f s, %d rotor FRF solves, %d evaluations\n", secs, r.rotor_solves, r.evaluations);
 
@@ -100,7 +104,7 @@ int run_explain(const std::vector<std::string>& argv) {
 std::vector<Command> explain_commands() {
   return {{{"explain"},
            "where and why the model and the recording differ, and the improved model",
-           "usage: ambdiag explain --model PLANT.json --measured FRF.csv [--json] [--svg FILE]\n"
+           "usage: ambdiag explain --model PLANT.json --measured FRF.csv [FRF2.csv ...] [--json] [--svg FILE]\n"
            "                       [-o IMPROVED.json] [--max-steps N]\n\n"
            "Compares the model's FRF matrix with the measured one, weighted by the measurement's\n"
            "sigma columns; locates bands beyond noise (entries, modes, kind of difference); corrects\n"
@@ -109,7 +113,10 @@ std::vector<Command> explain_commands() {
            "coupling_stiffness, stiffness_change, gyroscopic, damping) chosen by a penalised criterion\n"
            "checked on held-out lines. Prints the improved plant model (improved_model; a delay is the\n"
            "extension \"acquisition\": {\"delay_s\"}), NRMSE before/after per entry, and with --svg the\n"
-           "measured, model and improved FRFs with the mismatch bands. See docs/explain.md.\n",
+           "measured, model and improved FRFs with the mismatch bands. Recordings after the first (each\n"
+           "stating another speed_rpm) judge the explanation: physics one speed cannot tell apart are\n"
+           "decided by how they change with speed, a seal's cross-coupling gets its speed law, and\n"
+           "other_speeds shows whether the improved model holds there. See docs/explain.md.\n",
            run_explain}};
 }
 

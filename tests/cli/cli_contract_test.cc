@@ -83,6 +83,29 @@ TEST(Cli, ModelFrfWritesAReadableFrfFileAtTheRequestedGrid) {
   EXPECT_EQ(f.entries.size(), 25u);
 }
 
+// Recordings after the first judge the explanation at their speeds
+// (explain.h): the model's own FRFs at two speeds leave nothing to explain
+// at either; the same speed twice is refused as bad input naming speed_rpm.
+TEST(CliExplain, RecordingsAtOtherSpeedsAreJudgedAndOneAtTheSameSpeedRefused) {
+  const auto dir = testing::scratch_dir();
+  const std::string plant = data("reference_pump/plant.json");
+  for (const char* rpm : {"2950", "2200"}) {
+    const Result m = run("model frf " + plant + " -o " + (dir / (std::string(rpm) + ".csv")).string() + " --fmin 4 --fmax 400 --df 4 --speed " + rpm);
+    ASSERT_EQ(m.code, 0) << m.err;
+  }
+  const std::string a = (dir / "2950.csv").string(), b = (dir / "2200.csv").string();
+  const Result r = run("explain --model " + plant + " --measured " + a + " " + b + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["explanations"].empty()) << j["explanations"].dump();
+  ASSERT_EQ(j["other_speeds"].size(), 1u) << r.out.substr(0, 400);
+  EXPECT_EQ(j["other_speeds"][0]["speed_rpm"], 2200.0);
+  EXPECT_TRUE(j["other_speeds"][0]["unexplained"].empty());
+  const Result same = run("explain --model " + plant + " --measured " + a + " " + a + " --json");
+  EXPECT_EQ(same.code, 3) << same.err;
+  EXPECT_NE(same.err.find("speed_rpm"), std::string::npos) << same.err;
+}
+
 TEST(Cli, ConvertRoundTripsAnFrfThroughUff58) {
   const auto dir = testing::scratch_dir();
   const std::string src = data("ident_7mode/frf.csv");

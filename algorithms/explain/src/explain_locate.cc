@@ -6,6 +6,7 @@
 #include <set>
 
 #include "ambdiag/algorithms/explain/explain.h"
+#include "explain_locate.h"
 
 namespace ambdiag {
 
@@ -187,5 +188,19 @@ std::vector<Mismatch> locate_mismatches(const PlantModel& plant, const FrfData& 
   }
   return out;
 }
+
+namespace detail {
+
+std::vector<Mode> modes_in_band(const PlantModel& p, double rpm, double fmax) {
+  ModalOptions mo;
+  mo.shapes = true;
+  mo.f_max_hz = fmax;
+  std::vector<Mode> out;
+  for (auto& m : modal_analysis(p, rpm, mo).modes)
+    if (m.f_hz <= fmax) out.push_back(m);
+  return out;
+}
+
+}  // namespace detail
 
 }  // namespace ambdiag

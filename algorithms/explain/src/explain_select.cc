@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <functional>
 #include <set>
 
 #include <Eigen/Dense>
@@ -15,7 +16,9 @@
 #include "ambdiag/algorithms/explain/explain.h"
 #include "ambdiag/algorithms/model/frf_compare.h"
 #include "ambdiag/core/error.h"
+#include "explain_locate.h"
 #include "explain_screen.h"
+#include "explain_speeds.h"
 
 namespace ambdiag {
 
@@ -997,23 +1000,155 @@ std::vector<ModePair> pair_modes(const std::vector<Mode>& before, const std::vec
   return out;
 }
 
-std::vector<Mode> modes_in_band(const PlantModel& p, double rpm, double fmax) {
-  ModalOptions mo;
-  mo.shapes = true;
-  mo.f_max_hz = fmax;
-  std::vector<Mode> out;
-  for (auto& m : modal_analysis(p, rpm, mo).modes)
-    if (m.f_hz <= fmax) out.push_back(m);
+
+// The selection with its speed-law pieces (explain_speeds.h: a seal's
+// cross-coupling) multiplied by `scale`.
+std::vector<Selected> scaled_law(std::vector<Selected> sel, double scale) {
+  for (auto& s : sel)
+    if (s.c.physics == "seal_cross_coupling")
+      for (auto& v : s.x) v *= scale;
+  return sel;
+}
+
+bool has_law(const std::vector<Selected>& sel) {
+  return std::any_of(sel.begin(), sel.end(), [](const Selected& s) { return s.c.physics == "seal_cross_coupling"; });
+}
+
+struct SpeedJudgement {
+  std::map<std::string, nlohmann::json> refuted;  // by claim id: what the other speeds ruled out in its place
+  std::map<std::string, double> exponent;         // by claim id: a seal claim's fitted speed law
+  std::optional<double> law;                      // of the whole selection
+};
+
+// Recordings at other speeds judge each claim against its alternatives
+// (explain_speeds.h). Each, in the claim's place, has its parameters (and
+// the seal's speed law) fitted jointly to the first recording's lines and
+// the other recordings; one whose fit is worse by more than 2 ln 100 (a
+// likelihood ratio of 100; fits, not penalised, as in alternatives()) is
+// ruled out. Where that is the claim, the best alternative takes its place.
+// The winner keeps its joint fit: the improved model is fitted to every
+// recording.
+SpeedJudgement judge_at_other_speeds(Selector& engine, detail::OtherSpeeds& others, std::vector<Selected>& sel,
+                                     std::vector<Selector::Alternative>& alternatives,
+                                     const std::function<void(const std::string&)>& progress) {
+  SpeedJudgement out;
+  if (others.empty() || sel.empty()) return out;
+  constexpr double kDecisive = 2.0 * 4.605170185988092;  // 2 ln 100
+  struct Joint {
+    std::vector<double> x;
+    std::optional<double> exponent;
+    double chi2 = 0.0;
+  };
+  // Piece k of `s` (and the law) fitted to every recording, the rest held.
+  const auto joint_fit = [&](const std::vector<Selected>& s, size_t k) {
+    const bool law = has_law(s);
+    const size_t np = s[k].c.params.size();
+    std::vector<FitParameter> params = s[k].c.params;
+    for (size_t i = 0; i < np; ++i) params[i].initial = s[k].x[i];
+    if (law) params.push_back({"speed_exponent", 1.0, 0.0, 3.0, 0.1});
+    const auto residual = [&](const std::vector<double>& x) {
+      std::vector<Selected> t = s;
+      t[k].x.assign(x.begin(), x.begin() + static_cast<long>(np));
+      auto r = engine.residual(engine.build(t), engine.all_lines());
+      const auto r2 = others.residual([&](double scale) { return engine.build(scaled_law(t, scale)); }, law ? x[np] : 0.0);
+      r.insert(r.end(), r2.begin(), r2.end());
+      return r;
+    };
+    LeastSquaresOptions fo;
+    fo.max_iterations = 10;
+    const LeastSquaresResult fr = fit_least_squares(residual, params, fo);
+    Joint j;
+    j.x.assign(fr.x.begin(), fr.x.begin() + static_cast<long>(np));
+    if (law) j.exponent = fr.x[np];
+    j.chi2 = fr.chi2;
+    return j;
+  };
+  bool judged_law = false;
+  for (size_t k = 0; k < sel.size(); ++k) {
+    if (sel[k].c.is_update) continue;
+    std::vector<size_t> mine;
+    for (size_t a = 0; a < alternatives.size(); ++a)
+      if (alternatives[a].claim_id == sel[k].c.id) mine.push_back(a);
+    if (mine.empty()) continue;
+    // Everyone in the claim's place: the claim first, then each alternative.
+    struct Option {
+      Candidate c;
+      Joint fit;
+    };
+    std::vector<Option> opts{{sel[k].c, joint_fit(sel, k)}};
+    for (size_t a : mine) {
+      std::vector<Selected> s = sel;
+      s[k].c = alternatives[a].c;
+      s[k].x = alternatives[a].x;
+      opts.push_back({alternatives[a].c, joint_fit(s, k)});
+    }
+    size_t best = 0;
+    for (size_t i = 1; i < opts.size(); ++i)
+      if (opts[i].fit.chi2 < opts[best].fit.chi2) best = i;
+    if (best != 0 && opts[0].fit.chi2 - opts[best].fit.chi2 <= kDecisive) best = 0;  // not decisive: the claim stays
+    for (size_t i = 0; i < opts.size(); ++i)
+      progress("other speeds: " + opts[i].c.id + fmt(" chi2 over every recording %.6g", opts[i].fit.chi2) + (i == best ? " (kept)" : ""));
+    const std::string old_id = sel[k].c.id;
+    if (best != 0) {
+      progress("other speeds: " + opts[best].c.id + " replaces " + old_id);
+      sel[k].c = opts[best].c;
+      sel[k].report.physics = opts[best].c.physics;
+    }
+    sel[k].x = opts[best].fit.x;
+    if (opts[best].fit.exponent) out.law = opts[best].fit.exponent, judged_law = true;
+    nlohmann::json refuted = nlohmann::json::array();
+    std::vector<Selector::Alternative> kept;
+    for (size_t i = 0; i < opts.size(); ++i) {
+      if (i == best) continue;
+      const double d = opts[i].fit.chi2 - opts[best].fit.chi2;
+      if (d > kDecisive) {
+        refuted.push_back({{"physics", opts[i].c.physics},
+                           {"parameters", opts[i].c.describe(opts[i].fit.x)},
+                           {"location", opts[i].c.location},
+                           {"chi2_difference", d},
+                           {"evidence", "fits the recordings at every speed worse: " + opts[i].c.signature}});
+      } else {
+        kept.push_back(i == 0 ? Selector::Alternative{old_id, opts[0].c, opts[0].fit.x, d, d} : alternatives[mine[i - 1]]);
+        kept.back().claim_id = sel[k].c.id;
+        kept.back().x = opts[i].fit.x;
+      }
+    }
+    std::vector<Selector::Alternative> rest;
+    for (auto& a : alternatives)
+      if (a.claim_id != old_id) rest.push_back(std::move(a));
+    rest.insert(rest.end(), kept.begin(), kept.end());
+    alternatives = std::move(rest);
+    if (!refuted.empty()) out.refuted[sel[k].c.id] = refuted;
+  }
+  // A seal's law not yet fitted (its claim had no alternatives): fitted with it.
+  if (has_law(sel) && !judged_law)
+    for (size_t k = 0; k < sel.size(); ++k)
+      if (sel[k].c.physics == "seal_cross_coupling") {
+        const Joint j = joint_fit(sel, k);
+        sel[k].x = j.x;
+        out.law = j.exponent;
+        break;
+      }
+  if (out.law) progress(fmt("other speeds: the seal's cross-coupling grows with speed^%.3f", *out.law));
+  if (out.law)
+    for (const auto& s : sel)
+      if (s.c.physics == "seal_cross_coupling") out.exponent[s.c.id] = *out.law;
   return out;
 }
 
 }  // namespace
 
 ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const ExplainOptions& options) {
+  return explain(nominal, measured, {}, options);
+}
+
+ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const std::vector<FrfData>& other_speeds,
+                      const ExplainOptions& options) {
   PlantFrfEvaluator eval(measured);
   Selector sel_engine(nominal, eval, options);
   ExplainResult res;
   const double rpm = eval.speed_rpm(nominal);
+  detail::OtherSpeeds others(other_speeds, rpm);  // refuses bad recordings before any work
   const double fmax = measured.freq_hz.back();
   auto progress = [&](const std::string& s) {
     if (options.progress) options.progress(s);
@@ -1022,7 +1157,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   // 1. Locate.
   const PlantVariant base{nominal, 0.0};
   res.model_before = eval.model_frf(base);
-  const std::vector<Mode> modes_before = modes_in_band(nominal, rpm, fmax);
+  const std::vector<Mode> modes_before = detail::modes_in_band(nominal, rpm, fmax);
   res.mismatches = locate_mismatches(nominal, res.model_before, eval, modes_before, options.window_threshold);
   progress("located " + std::to_string(res.mismatches.size()) + " mismatch band(s)");
 
@@ -1093,11 +1228,17 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   }
   std::vector<Selector::Alternative> alternatives;
   if (!sel.empty()) alternatives = sel_engine.alternatives(sel, physics_candidates(nominal, view_of(sel_engine.build(sel))));
+  const SpeedJudgement judged = judge_at_other_speeds(sel_engine, others, sel, alternatives, progress);
 
 
   // 3. Report.
   res.improved = sel_engine.build(sel);
   res.improved.plant.name = nominal.name + " (explained)";
+  if (judged.law)  // the seal's speed law into its link's table (explain_speeds.h)
+    for (const auto& s : sel)
+      if (s.c.physics == "seal_cross_coupling")
+        for (auto& l : res.improved.plant.links)
+          if (l.name == s.c.location.value("link", "")) detail::write_speed_law(l, s.x[0], s.x[1], *judged.law, rpm);
   res.model_after = eval.model_frf(res.improved);
   const FrfComparison cb = compare_frf(res.model_before, measured), ca = compare_frf(res.model_after, measured);
   res.nrmse_before = cb.nrmse;
@@ -1132,6 +1273,16 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     e.location = s.c.location;
     e.evidence = s.c.signature + fmt("; chi2 on the fit lines -%.4g, on the held-out lines -%.4g (penalty %.4g)", e.chi2_drop_fit,
                                      e.chi2_drop_validation, e.penalty);
+    if (const auto it = judged.refuted.find(s.c.id); it != judged.refuted.end()) {
+      e.refuted = it->second;
+      for (const auto& r : it->second)
+        alt_story.push_back("The recordings at other speeds rule out " + r["physics"].get<std::string>() + " at " + r["location"].dump() +
+                            " in place of " + s.c.physics + fmt(" (chi2 there higher by %.3g).", r["chi2_difference"].get<double>()));
+    }
+    if (const auto it = judged.exponent.find(s.c.id); it != judged.exponent.end()) {
+      e.other_speeds = {{"speed_exponent", it->second}};
+      e.parameters["speed_exponent"] = it->second;
+    }
     for (const auto& a : alternatives) {
       if (a.claim_id != s.c.id) continue;
       e.alternatives.push_back(nlohmann::json{{"physics", a.c.physics},
@@ -1145,7 +1296,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
     res.explanations.push_back(e);
   }
 
-  const std::vector<Mode> modes_after = modes_in_band(res.improved.plant, rpm, fmax);
+  const std::vector<Mode> modes_after = detail::modes_in_band(res.improved.plant, rpm, fmax);
   res.unexplained = locate_mismatches(res.improved.plant, res.model_after, eval, modes_after, options.window_threshold);
   std::string attached_story;
   if (attached) {
@@ -1164,6 +1315,13 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
       band->evidence = what;
     }
     attached_story = "Not explained: " + what + ".";
+  }
+  if (!others.empty()) {
+    res.other_speeds = others.report(nominal, res.improved, options.window_threshold);
+    for (const auto& c : res.other_speeds)
+      res.story.push_back(fmt("At %.0f rpm the improved model ", c.speed_rpm) +
+                          (c.unexplained.empty() ? std::string("holds: ") : fmt("leaves %.0f band(s) beyond noise: ", static_cast<double>(c.unexplained.size()))) +
+                          fmt("NRMSE %.4f -> %.4f", c.nrmse_before, c.nrmse_after) + fmt(" (noise floor %.4f).", c.noise_floor_nrmse));
   }
   res.modes = pair_modes(modes_before, modes_after);
   res.rotor_solves = eval.rotor_solves();
@@ -1210,22 +1368,36 @@ nlohmann::json explain_to_json(const ExplainResult& r) {
   auto num = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
   json out = {{"mismatches", json::array()}, {"explanations", json::array()}, {"unexplained", json::array()}, {"updated_parameters", json::array()}};
   for (const auto& m : r.mismatches) out["mismatches"].push_back(band_json(m, true));
-  for (const auto& e : r.explanations)
-    out["explanations"].push_back({{"physics", e.physics},
-                                   {"parameters", e.parameters},
-                                   {"parameters_sd", e.sd},
-                                   {"location", e.location},
-                                   {"nrmse_before", e.nrmse_before},
-                                   {"nrmse_after", e.nrmse_after},
-                                   {"evidence", e.evidence},
-                                   {"alternatives", e.alternatives}});
-  for (const auto& m : r.unexplained) {
+  for (const auto& e : r.explanations) {
+    json j = {{"physics", e.physics},       {"parameters", e.parameters},   {"parameters_sd", e.sd},
+              {"location", e.location},     {"nrmse_before", e.nrmse_before}, {"nrmse_after", e.nrmse_after},
+              {"evidence", e.evidence},     {"alternatives", e.alternatives}};
+    if (!e.other_speeds.is_null()) j["other_speeds"] = e.other_speeds;
+    if (!e.refuted.empty()) j["refuted"] = e.refuted;
+    out["explanations"].push_back(j);
+  }
+  auto unexplained_json = [&](const Mismatch& m) {
     json j = band_json(m, false);
     j["kind"] = m.kind;
     j["chi2_per_line"] = m.chi2_per_line;
     if (m.located) j["located"] = *m.located;
     if (!m.evidence.empty()) j["evidence"] = m.evidence;
-    out["unexplained"].push_back(j);
+    return j;
+  };
+  for (const auto& m : r.unexplained) out["unexplained"].push_back(unexplained_json(m));
+  if (!r.other_speeds.empty()) {
+    out["other_speeds"] = json::array();
+    for (const auto& c : r.other_speeds) {
+      json bands = json::array();
+      for (const auto& m : c.unexplained) bands.push_back(unexplained_json(m));
+      out["other_speeds"].push_back({{"speed_rpm", c.speed_rpm},
+                                     {"nrmse_before", c.nrmse_before},
+                                     {"nrmse_after", c.nrmse_after},
+                                     {"noise_floor_nrmse", c.noise_floor_nrmse},
+                                     {"chi2_per_line_before", c.chi2_per_line_before},
+                                     {"chi2_per_line_after", c.chi2_per_line_after},
+                                     {"unexplained", bands}});
+    }
   }
   for (const auto& c : r.updated_parameters) out["updated_parameters"].push_back({{"path", c.path}, {"from", c.from}, {"to", c.to}});
   out["nrmse_before"] = r.nrmse_before;

@@ -76,6 +76,11 @@ struct Explanation {
   // its place, chi2 within 2 ln 100 on a half): {physics, parameters,
   // location, chi2_difference {fit, held_out}, evidence}.
   nlohmann::json alternatives = nlohmann::json::array();
+  // With recordings at other speeds: how this claim predicts them
+  // ({"chi2_per_line": [...], "speed_exponent"?}), and the physics they
+  // ruled out ({physics, parameters, location, chi2_difference, evidence}).
+  nlohmann::json other_speeds = nullptr;
+  nlohmann::json refuted = nlohmann::json::array();
 };
 
 struct EntryFit {
@@ -92,6 +97,15 @@ struct ModePair {
   std::string direction, whirl;
 };
 
+// The improved model against a recording at another speed (explain with
+// other_speeds; explain_speeds.h): does the explanation hold there too?
+struct SpeedCheck {
+  double speed_rpm = 0.0;
+  double nrmse_before = 0.0, nrmse_after = 0.0, noise_floor_nrmse = 0.0;
+  double chi2_per_line_before = 0.0, chi2_per_line_after = 0.0;
+  std::vector<Mismatch> unexplained;  // bands beyond noise there with the improved model
+};
+
 struct ExplainResult {
   std::vector<Mismatch> mismatches;
   std::vector<Explanation> explanations;
@@ -99,6 +113,7 @@ struct ExplainResult {
   std::vector<ParameterChange> updated_parameters;
   std::vector<EntryFit> entries;
   std::vector<ModePair> modes;
+  std::vector<SpeedCheck> other_speeds;  // one per recording at another speed
   double nrmse_before = 0.0, nrmse_after = 0.0, noise_floor_nrmse = 0.0;
   double chi2_per_line_before = 0.0, chi2_per_line_after = 0.0;
   PlantVariant improved;
@@ -110,6 +125,15 @@ struct ExplainResult {
 // Throws InputError when the measurement and the model do not fit together
 // (an entry names a sensor/actuator the model lacks).
 ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const ExplainOptions& options = {});
+// The same, with recordings of the machine at other speeds (each stating its
+// speed_rpm): the explanation is chosen on `measured`; the others decide
+// between physics one speed cannot tell apart (the claim or an alternative
+// that predicts them decisively worse is ruled out), give a seal
+// cross-coupling its speed law, and show whether the improved model holds
+// at their speeds (other_speeds). Throws InputError for a recording without
+// speed_rpm or at the primary's speed.
+ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const std::vector<FrfData>& other_speeds,
+                      const ExplainOptions& options = {});
 
 // Locating alone (step 1) for a model's FRF against the measurement.
 // `model_modes` (modal_analysis of the plant) name the mode behind a band.
