@@ -17,6 +17,8 @@
 
 #include <complex>
 #include <functional>
+#include <map>
+#include <string>
 #include <optional>
 #include <vector>
 
@@ -24,6 +26,7 @@
 #include "ambdiag/algorithms/model/plant_frf_fit.h"
 #include "ambdiag/core/frf_data.h"
 #include "ambdiag/core/plant_model.h"
+#include "explain_selector.h"
 
 namespace ambdiag::detail {
 
@@ -61,5 +64,28 @@ class OtherSpeeds {
 // table with points inserted is the same function); held beyond, as the
 // plant format holds every table.
 void write_speed_law(Link& l, double k, double c, double exponent, double rpm0);
+
+// The selection with its speed-law pieces (a seal's cross-coupling)
+// multiplied by `scale`, and whether it has any.
+std::vector<Selected> scaled_law(std::vector<Selected> sel, double scale);
+bool has_law(const std::vector<Selected>& sel);
+
+struct SpeedJudgement {
+  std::map<std::string, nlohmann::json> refuted;  // by claim id: what the other speeds ruled out in its place
+  std::map<std::string, double> exponent;         // by claim id: a seal claim's fitted speed law
+  std::optional<double> law;                      // of the whole selection
+};
+
+// Recordings at other speeds judge each claim against its alternatives: each,
+// in the claim's place, has its parameters (and the seal's speed law)
+// fitted jointly to the first recording's lines and the others; one whose
+// fit is worse by more than 2 ln 100 is ruled out (a likelihood ratio of
+// 100; fits, not penalised, as in Selector::alternatives). Where that is the
+// claim, the best alternative takes its place. The winner keeps its joint
+// fit: the improved model is fitted to every recording. `sel` and
+// `alternatives` are updated in place.
+SpeedJudgement judge_at_other_speeds(Selector& engine, OtherSpeeds& others, std::vector<Selected>& sel,
+                                     std::vector<Selector::Alternative>& alternatives,
+                                     const std::function<void(const std::string&)>& progress);
 
 }  // namespace ambdiag::detail
