@@ -19,6 +19,9 @@ if(NOT AMBDIAG_FUZZ_ONLY)
   find_package(SQLite3 REQUIRED)
   find_package(PkgConfig REQUIRED)
   pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+  # HTTPS for the REST service (issue 21): Debian's cpp-httplib is built
+  # with CPPHTTPLIB_OPENSSL_SUPPORT; the TLS context is set up with OpenSSL.
+  find_package(OpenSSL REQUIRED)
 endif()
 
 if(AMBDIAG_BUILD_TESTS OR AMBDIAG_FUZZ)

@@ -37,7 +37,7 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
-                   "--workers", "--reference-runs", "--alpha"},
+                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -46,7 +46,8 @@ int run_serve(const std::vector<std::string>& argv) {
   const int http_port = integer_in(args, "--http-port", 0, 65535, 0);
   server::IngestOptions opt;
   opt.domain = integer_in(args, "--domain", 0, 232, 0);
-  if (const auto p = args.option("--partition")) opt.partitions = {*p};
+  // The site and its pumps' own partitions (SITE/PUMP, docs/streaming.md "Security").
+  if (const auto p = args.option("--partition")) opt.partitions = {*p, *p + "/*"};
   opt.agent_timeout = std::chrono::milliseconds(
       static_cast<long>(1000.0 * args.number("--agent-timeout").value_or(10.0)));
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
@@ -81,6 +82,10 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.port = http_port;
   rest_opt.analysis = analysis ? &*analysis : nullptr;
   rest_opt.anonymous_read = args.flag("--anonymous-read");
+  rest_opt.tls_cert_path = args.option("--tls-cert").value_or("");
+  rest_opt.tls_key_path = args.option("--tls-key").value_or("");
+  if (rest_opt.tls_cert_path.empty() != rest_opt.tls_key_path.empty())
+    throw UsageError("--tls-cert and --tls-key go together (HTTPS needs both)");
   rest_opt.proposed_reference_runs = aopt.proposed_reference_runs;
   rest_opt.health_extra = [&ingest, &historian, &analysis] {
     const auto ck = historian.checkpoint_stats();
@@ -94,8 +99,8 @@ int run_serve(const std::vector<std::string>& argv) {
   };
   server::RestServer rest(rest_opt);
   const int bound_port = rest.start();
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d\n", db->c_str(),
-               opt.domain, opt.partitions.front().c_str(), bound_port);
+  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n", db->c_str(),
+               opt.domain, opt.partitions.front().c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
   if (analysis) analysis->start();
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
@@ -138,7 +143,7 @@ int run_serve(const std::vector<std::string>& argv) {
 std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
-           "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--quiet]\n"
+           "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
@@ -154,7 +159,10 @@ std::vector<Command> serve_commands() {
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"
-           "Set CYCLONEDDS_URI to a Cyclone config (deploy/cyclonedds/local.xml on one machine).\n",
+           "--tls-cert FILE --tls-key FILE: the REST port speaks HTTPS only (TLS 1.2 or later), PEM files\n"
+           "  (deploy/security/ambdiag-pki.sh tls); a missing, unreadable or mismatched file: exit 3.\n"
+           "Set CYCLONEDDS_URI to a Cyclone config (deploy/cyclonedds/local.xml on one machine); with DDS\n"
+           "Security, append the server's security.xml (deploy/security/ambdiag-pki.sh, docs/streaming.md).\n",
            run_serve}};
 }
 

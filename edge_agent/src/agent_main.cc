@@ -57,6 +57,8 @@ const char* kUsage =
     "                       the sample rate, so a default simulated run of 30 s takes 30 s)\n"
     "  --domain D           DDS domain id (default 0 or the config's)\n"
     "  --partition NAME     DDS partition, one per site (default \"site\")\n"
+    "  --partition-per-pump publish in the pump's own partition NAME/PUMP (what DDS Security\n"
+    "                       permissions grant an enrolled agent; needs --pump ID)\n"
     "  --pump ID            pump id (default: the recording's)\n"
     "  --spool-dir DIR      store-and-forward folder (default ./ambdiag-spool), one agent per folder\n"
     "  --spool-limit BYTES  bound on the spool's disk use (default 1 GiB)\n"
@@ -99,7 +101,7 @@ Cli parse(int argc, char** argv) {
     throw UsageError("unknown command '" + c.command + "'");
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--fast") {
+    if (a == "--fast" || a == "--partition-per-pump") {
       c.flags[a] = true;
     } else if (a == "--fault") {  // --fault NAME [NAME ...]
       if (i + 1 >= argc || std::string(argv[i + 1]).starts_with("--")) throw UsageError("--fault needs a name");
@@ -138,13 +140,32 @@ agent::AgentConfig config_from(const Cli& c) {
   agent::AgentConfig cfg = c.has("--config") ? agent::load_agent_config(c.opt("--config")) : agent::AgentConfig{};
   if (c.has("--domain")) cfg.domain = static_cast<int>(integer_option(c, "--domain", 0, 232));
   if (c.has("--partition")) cfg.partition = c.opt("--partition");
+  if (c.flags.count("--partition-per-pump")) cfg.partition_per_pump = true;
   if (c.has("--pump")) cfg.pump_id = c.opt("--pump");
   if (c.has("--spool-dir")) cfg.spool_dir = c.opt("--spool-dir");
   if (c.has("--spool-limit")) cfg.spool_limit_bytes = static_cast<uint64_t>(integer_option(c, "--spool-limit", 0, 1ll << 50));
   if (c.has("--block-frames")) cfg.block_frames = static_cast<uint32_t>(integer_option(c, "--block-frames", 1, 65536));
   if (c.has("--model")) cfg.model = c.opt("--model");
   validate(cfg, "command line");
+  agent::dds_partition(cfg, "command line");  // checked now, before any run is read
   return cfg;
+}
+
+// The agent's DDS side. Under DDS Security a writer or reader its
+// permissions do not grant cannot be created: say which grant is missing
+// (bad input, exit 3) rather than a bare return code.
+std::unique_ptr<stream::AgentEndpoints> open_endpoints(const agent::AgentConfig& cfg) {
+  const std::string partition = agent::dds_partition(cfg, "command line");
+  try {
+    return std::make_unique<stream::AgentEndpoints>(cfg.domain, partition);
+  } catch (const dds::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    throw InputError("DDS Security refused this agent's endpoints (" + std::string(e.what()) +
+                     "): its permissions document must grant publishing the ambdiag data topics and reading "
+                     "ambdiag_Ack in partition '" + partition + "' of domain " + std::to_string(cfg.domain) +
+                     "; enrol the agent for this pump (deploy/security/ambdiag-pki.sh agent DIR PUMP_ID) and "
+                     "run it with that pump's security.xml and agent.json");
+  }
 }
 
 std::string join(const std::vector<std::string>& v) {
@@ -190,6 +211,12 @@ bool forward_backlog(stream::AgentEndpoints& ep, const agent::AgentConfig& cfg, 
     }
     for (const auto& p : problems) std::fprintf(stderr, "ambdiag-agent: spool: %s\n", p.c_str());
     const std::string run_id = spool->header()->run_id;
+    if (cfg.partition_per_pump && spool->header()->pump_id != cfg.pump_id) {
+      std::fprintf(stderr, "ambdiag-agent: spooled run %s is of pump %s, this agent publishes for pump %s only: left in place\n",
+                   run_id.c_str(), spool->header()->pump_id.c_str(), cfg.pump_id.c_str());
+      all_ok = false;
+      continue;
+    }
     std::fprintf(stderr, "ambdiag-agent: forwarding spooled run %s: %zu blocks held, %s\n", run_id.c_str(),
                  spool->size(), spool->end() ? "complete recording" : "cut off (no run end)");
     const agent::StreamResult r = agent::forward_spooled(ep, *spool, opt);
@@ -217,16 +244,16 @@ int run(const Cli& c) {
   if (c.command == "forward") {
     if (!c.positional.empty()) throw UsageError("forward takes no positional arguments");
     const agent::SpoolLock lock(cfg.spool_dir);
-    stream::AgentEndpoints ep(cfg.domain, cfg.partition);
-    return forward_backlog(ep, cfg, opt) ? 0 : 1;
+    const auto ep = open_endpoints(cfg);
+    return forward_backlog(*ep, cfg, opt) ? 0 : 1;
   }
   if (c.command == "replay") {
     if (c.positional.size() != 1) throw UsageError("replay needs exactly one RUN_DIR");
     RunRecording run = read_run(c.positional[0]);
     const agent::SpoolLock lock(cfg.spool_dir);
-    stream::AgentEndpoints ep(cfg.domain, cfg.partition);
-    forward_backlog(ep, cfg, opt);
-    return stream_one(ep, std::move(run), cfg, opt) ? 0 : 1;
+    const auto ep = open_endpoints(cfg);
+    forward_backlog(*ep, cfg, opt);
+    return stream_one(*ep, std::move(run), cfg, opt) ? 0 : 1;
   }
   // simulate: identification runs every identification_interval_s, the
   // first at start, until `runs` are done (0: until stopped); monitoring
@@ -271,7 +298,8 @@ int run(const Cli& c) {
                "(first actuator), spectral radius %.6f\n",
                cfg.pump_id.c_str(), cfg.model.c_str(), sim.excitation.c_str(), join(sim.faults).c_str(),
                simulator.loop().controller_rate_hz(), loop.k_i_n_per_a.at(0), loop.k_s_n_per_m.at(0), loop.spectral_radius);
-  stream::AgentEndpoints ep(cfg.domain, cfg.partition);
+  const auto endpoints = open_endpoints(cfg);
+  stream::AgentEndpoints& ep = *endpoints;
   std::unique_ptr<agent::SnapshotPublisher> snapshots;
   if (cfg.monitoring_interval_s > 0) {
     agent::SimulationOptions mon = sim;

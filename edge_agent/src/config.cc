@@ -10,6 +10,7 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/edge_agent/simulate.h"
+#include "ambdiag/proto/stream.h"
 
 namespace ambdiag::agent {
 namespace {
@@ -134,13 +135,17 @@ AgentConfig load_agent_config(const std::string& path) {
   }
   if (doc.contains("dds")) {
     const json& d = doc["dds"];
-    r.only(d, "dds", {"domain", "partition", "checksum"});
+    r.only(d, "dds", {"domain", "partition", "partition_per_pump", "checksum"});
     if (d.contains("domain")) {
       const int64_t v = r.integer(d["domain"], "dds.domain");
       if (v < 0 || v > 232) r.fail("dds.domain", "must be in 0..232");
       c.domain = static_cast<int>(v);
     }
     if (d.contains("partition")) c.partition = r.str(d["partition"], "dds.partition");
+    if (d.contains("partition_per_pump")) {
+      if (!d["partition_per_pump"].is_boolean()) r.fail("dds.partition_per_pump", "must be true or false");
+      c.partition_per_pump = d["partition_per_pump"].get<bool>();
+    }
     if (d.contains("checksum")) {
       c.checksum = r.str(d["checksum"], "dds.checksum");
       if (!checksum_kind_from(c.checksum)) r.fail("dds.checksum", "must be \"xxh64\" or \"fnv1a64\"");
@@ -168,6 +173,16 @@ AgentConfig load_agent_config(const std::string& path) {
   }
   validate(c, path);
   return c;
+}
+
+std::string dds_partition(const AgentConfig& c, const std::string& origin) {
+  if (!c.partition_per_pump) return c.partition;
+  if (c.pump_id.empty()) throw InputError(origin + ": dds.partition_per_pump needs the pump id (--pump ID or \"pump_id\")");
+  if (!stream::plain_partition_name(c.pump_id))
+    throw InputError(origin + ": pump_id '" + c.pump_id + "' cannot name a partition (dds.partition_per_pump): no / * ? [ ] \\");
+  if (!stream::plain_partition_name(c.partition))
+    throw InputError(origin + ": dds.partition '" + c.partition + "' must not contain / with dds.partition_per_pump");
+  return stream::pump_partition(c.partition, c.pump_id);
 }
 
 }  // namespace ambdiag::agent

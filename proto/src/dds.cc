@@ -69,6 +69,23 @@ Qos& Qos::liveliness_automatic(std::chrono::nanoseconds lease) {
 Participant::Participant(dds_domainid_t domain)
     : Entity(check(dds_create_participant(domain, nullptr, nullptr), "dds_create_participant")) {}
 
+std::optional<std::vector<std::string>> matched_writer_partitions(const Entity& reader, dds_instance_handle_t writer) {
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(reader.get(), writer);
+  if (!ep) return std::nullopt;
+  std::vector<std::string> out;
+  uint32_t n = 0;
+  char** names = nullptr;
+  if (ep->qos && dds_qget_partition(ep->qos, &n, &names)) {
+    for (uint32_t i = 0; i < n; ++i) {
+      out.emplace_back(names[i]);
+      dds_free(names[i]);
+    }
+    dds_free(names);
+  }
+  dds_builtintopic_free_endpoint(ep);
+  return out;
+}
+
 Topic::Topic(const Participant& p, const dds_topic_descriptor_t* type, const std::string& name)
     : Entity(check(dds_create_topic(p.get(), type, name.c_str(), nullptr, nullptr), "dds_create_topic")) {}
 

@@ -89,6 +89,19 @@ ServerEndpoints::ServerEndpoints(dds_domainid_t domain, const std::vector<std::s
       monitoring(subscriber, topics.monitoring, monitoring_qos()),
       ack(publisher, topics.ack, ack_qos()) {}
 
+bool plain_partition_name(const std::string& name) {
+  return !name.empty() && name.find_first_of("/*?[]\\") == std::string::npos;
+}
+
+std::string pump_partition(const std::string& site, const std::string& pump) { return site + "/" + pump; }
+
+std::optional<std::string> pump_of_partitions(const std::vector<std::string>& partitions) {
+  if (partitions.size() != 1) return std::nullopt;
+  const auto slash = partitions[0].find('/');
+  if (slash == std::string::npos || slash + 1 == partitions[0].size()) return std::nullopt;
+  return partitions[0].substr(slash + 1);
+}
+
 dds_sequence_octet borrow_octets(const void* data, size_t n) {
   dds_sequence_octet s{};
   s._maximum = static_cast<uint32_t>(n);

@@ -16,6 +16,7 @@
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/storage/historian.h"
 #include "ingest_commit.h"
+#include "ingest_identity.h"
 #include "ingest_work.h"
 
 namespace ambdiag::server {
@@ -120,6 +121,7 @@ struct Ingest::Impl {
   Impl(storage::Historian& h, IngestOptions o, IngestCounters& c)
       : opt(std::move(o)),
         counters(c),
+        security_log(c),
         db_path(h.path()),
         ep(opt.domain, opt.partitions),
         ws(ep.participant),
@@ -134,6 +136,8 @@ struct Ingest::Impl {
 
   IngestOptions opt;
   IngestCounters& counters;
+  SecurityLog security_log;  // before the participant: refusals while it starts count too
+  WriterPumps writers;
   std::string db_path;
   std::optional<storage::Historian> reader;  // this thread's own read connection
   stream::ServerEndpoints ep;
@@ -148,6 +152,17 @@ struct Ingest::Impl {
     detail::log_line(opt.verbose, "rejected (" + reason + ") run '" + run_id + "': " + what);
   }
 
+  // True (rejected, counted, logged) if the sample's writer is bound to a
+  // pump other than `pump` (docs/streaming.md, "Security").
+  bool from_other_pump(const dds::Entity& taken_from, const dds_sample_info_t& info, const std::string& pump,
+                       const std::string& run_id, const char* what) {
+    const auto bound = writers.bound_pump(taken_from, info.publication_handle);
+    if (!bound || *bound == pump) return false;
+    reject("pump_partition", run_id, std::string(what) + " names pump '" + pump + "' but its writer publishes in pump '" +
+                                         *bound + "''s partition");
+    return true;
+  }
+
   void push(detail::Work w) {
     const auto bytes = static_cast<int64_t>(queue.push(std::move(w)));
     counters.queue_bytes = bytes;
@@ -155,8 +170,9 @@ struct Ingest::Impl {
   }
 
   void take_status() {
-    ep.status.take(4096, [&](const ambdiag_stream_AgentStatus& s, const dds_sample_info_t&) {
+    ep.status.take(4096, [&](const ambdiag_stream_AgentStatus& s, const dds_sample_info_t& info) {
       ++counters.heartbeats;
+      if (from_other_pump(ep.status, info, s.pump_id, s.run_id, "heartbeat")) return;
       if (!stream::compatible(s.protocol_version)) {
         if (!warned_pump_version[s.pump_id])
           reject("version", s.run_id, std::string("agent of pump ") + s.pump_id + " speaks protocol " +
@@ -171,7 +187,7 @@ struct Ingest::Impl {
   }
 
   void take_headers() {
-    ep.header.take(256, [&](const ambdiag_stream_RunHeader& h, const dds_sample_info_t&) {
+    ep.header.take(256, [&](const ambdiag_stream_RunHeader& h, const dds_sample_info_t& info) {
       const std::string run_id = h.run_id;
       if (!stream::compatible(h.protocol_version)) {
         reject("version", run_id, "protocol " + stream::version_string(h.protocol_version));
@@ -184,6 +200,7 @@ struct Ingest::Impl {
           throw InputError("run header: n_channels " + std::to_string(h.n_channels) + " but run.json has " +
                            std::to_string(rh.channels.size()) + " channels");
         if (rh.sample_rate_hz != h.sample_rate_hz) throw InputError("run header: sample_rate_hz differs from run.json");
+        if (from_other_pump(ep.header, info, rh.pump_id, run_id, "run header")) return;
         const bool known = active.count(run_id) > 0;
         if (!known) {
           active[run_id] = ActiveRun{rh.pump_id, h.n_channels, Clock::now()};
@@ -275,7 +292,13 @@ struct Ingest::Impl {
     constexpr size_t kPerItem = 32;
     for (int round = 0; round < 64 && queue.has_room(); ++round) {
       std::map<std::string, std::vector<detail::ValidBlock>> by_run;
-      const size_t n = ep.block.take(kPerItem, [&](const ambdiag_stream_SampleBlock& b, const dds_sample_info_t&) {
+      const size_t n = ep.block.take(kPerItem, [&](const ambdiag_stream_SampleBlock& b, const dds_sample_info_t& info) {
+        // A block names no pump: its run does (the header already stored).
+        if (const auto it = active.find(b.run_id);
+            it != active.end() && from_other_pump(ep.block, info, it->second.pump_id, b.run_id, "block of a run that")) {
+          ++counters.blocks_received;
+          return;
+        }
         if (auto v = validate(b)) by_run[b.run_id].push_back(std::move(*v));
       });
       for (auto& [run_id, blocks] : by_run) push(detail::Blocks{run_id, std::move(blocks)});
@@ -284,8 +307,12 @@ struct Ingest::Impl {
   }
 
   void take_ends() {
-    ep.end.take(256, [&](const ambdiag_stream_RunEnd& e, const dds_sample_info_t&) {
+    ep.end.take(256, [&](const ambdiag_stream_RunEnd& e, const dds_sample_info_t& info) {
       const std::string run_id = e.run_id;
+      const auto run = active.find(run_id);
+      if (from_other_pump(ep.end, info, run != active.end() ? run->second.pump_id : std::string(e.pump_id), run_id,
+                          "run end of a run that"))
+        return;
       if (!stream::compatible(e.protocol_version)) {
         reject("version", run_id, "run end protocol " + stream::version_string(e.protocol_version));
         return;
@@ -302,8 +329,9 @@ struct Ingest::Impl {
 
   void take_monitoring() {
     std::vector<storage::MonitoringSnapshot> ok;
-    ep.monitoring.take(1024, [&](const ambdiag_stream_MonitoringSnapshot& m, const dds_sample_info_t&) {
+    ep.monitoring.take(1024, [&](const ambdiag_stream_MonitoringSnapshot& m, const dds_sample_info_t& info) {
       const std::string pump = m.pump_id ? m.pump_id : "";
+      if (from_other_pump(ep.monitoring, info, pump, pump, "monitoring snapshot")) return;
       if (!stream::compatible(m.protocol_version)) {
         reject("version", pump, "monitoring snapshot protocol " + stream::version_string(m.protocol_version));
         return;

@@ -1,5 +1,6 @@
-// ambdiag-rest --db FILE [--http-port N] [--host H]: the REST read side alone
-// on an existing historian, until SIGINT or SIGTERM.
+// ambdiag-rest --db FILE [--http-port N] [--host H] [--tls-cert F --tls-key F]:
+// the REST read side alone on an existing historian, until SIGINT or
+// SIGTERM; with a certificate and key, HTTPS only.
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -20,13 +21,17 @@ int main(int argc, char** argv) {
       opt.port = std::atoi(argv[++i]);
     } else if (a == "--host" && has_value) {
       opt.host = argv[++i];
+    } else if (a == "--tls-cert" && has_value) {
+      opt.tls_cert_path = argv[++i];
+    } else if (a == "--tls-key" && has_value) {
+      opt.tls_key_path = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: ambdiag-rest --db FILE [--http-port N] [--host H]\n");
+      std::fprintf(stderr, "usage: ambdiag-rest --db FILE [--http-port N] [--host H] [--tls-cert F --tls-key F]\n");
       return 2;
     }
   }
-  if (opt.db_path.empty() || opt.port < 0 || opt.port > 65535) {
-    std::fprintf(stderr, "usage: ambdiag-rest --db FILE [--http-port N] [--host H]\n");
+  if (opt.db_path.empty() || opt.port < 0 || opt.port > 65535 || opt.tls_cert_path.empty() != opt.tls_key_path.empty()) {
+    std::fprintf(stderr, "usage: ambdiag-rest --db FILE [--http-port N] [--host H] [--tls-cert F --tls-key F]\n");
     return 2;
   }
   sigset_t stop_signals;
@@ -37,8 +42,8 @@ int main(int argc, char** argv) {
   try {
     ambdiag::server::RestServer server(opt);
     const int port = server.start();
-    std::fprintf(stderr, "ambdiag-rest: serving %s on http://%s:%d/api/v1/health\n", opt.db_path.c_str(),
-                 opt.host.c_str(), port);
+    std::fprintf(stderr, "ambdiag-rest: serving %s on %s://%s:%d/api/v1/health\n", opt.db_path.c_str(),
+                 opt.tls_cert_path.empty() ? "http" : "https", opt.host.c_str(), port);
     int sig = 0;
     sigwait(&stop_signals, &sig);
     server.stop();

@@ -9,6 +9,7 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/analysis_service.h"
 #include "reader_pool.h"
+#include "rest_tls.h"
 #include "routes/route_context.h"
 #include "url.h"
 
@@ -20,11 +21,18 @@ struct RestServer::Impl {
   RestOptions opt;
   detail::ReaderPool pool;
   detail::RouteTable routes;
-  httplib::Server http;
+  // HTTPS only with a certificate and key (TLS 1.2+), plain HTTP without.
+  std::unique_ptr<httplib::Server> server;
+  httplib::Server& http;
   std::thread thread;
   int port = 0;
 
-  explicit Impl(RestOptions o) : opt(std::move(o)), pool(opt.db_path, std::max(1, opt.worker_threads)) {
+  explicit Impl(RestOptions o)
+      : opt(std::move(o)),
+        pool(opt.db_path, std::max(1, opt.worker_threads)),
+        server(opt.tls_cert_path.empty() ? std::make_unique<httplib::Server>()
+                                         : detail::make_tls_server(opt.tls_cert_path, opt.tls_key_path)),
+        http(*server) {
     detail::add_read_routes(routes, std::chrono::steady_clock::now());
     detail::add_analysis_routes(routes);
   }

@@ -5,7 +5,7 @@
 //                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
 //                   "meas_periods": 4, "monitoring_s": 1, "seed": 1, "speed_spread_pct": 2,
 //                   "seal_drift_pct": 5, "seal_drift_link_pct": 1},
-//    "dds": {"domain": 0, "partition": "site-a", "checksum": "xxh64"},
+//    "dds": {"domain": 0, "partition": "site-a", "partition_per_pump": false, "checksum": "xxh64"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
 //    "block_frames": 512}
 // Every key is optional; unknown keys are refused (a typo must not silently
@@ -49,6 +49,10 @@ struct AgentConfig {
   SimulationConfig simulation;
   int domain = 0;                      // DDS domain id, 0..232
   std::string partition = "site";      // DDS partition: one per site
+  // Publish in the pump's own partition "<partition>/<pump_id>" instead of
+  // the site's: what DDS Security permissions grant an enrolled agent
+  // (deploy/security/ambdiag-pki.sh, docs/streaming.md "Security").
+  bool partition_per_pump = false;
   // Checksums of new runs: "xxh64" (protocol 1.1) or "fnv1a64" for a server
   // of protocol 1.0, which knows no other (docs/streaming.md).
   std::string checksum = "xxh64";
@@ -62,5 +66,9 @@ struct AgentConfig {
 AgentConfig load_agent_config(const std::string& path);
 // Checks value ranges; throws InputError naming the key and `origin`.
 void validate(const AgentConfig& c, const std::string& origin);
+// The DDS partition the agent publishes in: the site's, or with
+// partition_per_pump its pump's (then pump_id is required and must be a
+// plain name). Throws InputError naming `origin`.
+std::string dds_partition(const AgentConfig& c, const std::string& origin);
 
 }  // namespace ambdiag::agent

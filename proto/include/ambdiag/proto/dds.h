@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -131,6 +132,11 @@ class Reader : public Entity {
  private:
   size_t take_raw(size_t max_n, const std::function<void(const void*, const dds_sample_info_t&)>& f) const;
 };
+
+// The partitions of the remote writer `writer` (a sample's
+// publication_handle) matched with `reader`; nothing if it is no longer
+// matched (gone before its sample was taken).
+std::optional<std::vector<std::string>> matched_writer_partitions(const Entity& reader, dds_instance_handle_t writer);
 
 // Waits until any attached reader has data (or the timeout passes).
 class WaitSet : public Entity {

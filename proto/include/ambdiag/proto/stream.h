@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,17 @@ struct ServerEndpoints {
   dds::Reader<ambdiag_stream_MonitoringSnapshot> monitoring;
   dds::Writer<ambdiag_stream_Ack> ack;
 };
+
+// Per-pump partitions (docs/streaming.md, "Security"): an agent enrolled
+// for pump P of site S publishes in "S/P" only, which its DDS Security
+// permissions grant; the server reads every partition ("*") and binds a
+// writer in "S/P" to pump P. Site and pump names must then be plain: no
+// '/' and no wildcard characters.
+bool plain_partition_name(const std::string& name);
+std::string pump_partition(const std::string& site, const std::string& pump);
+// The pump a writer publishing in `partitions` is bound to: the P of its one
+// partition "S/P", or nothing for a site-wide writer (plain mode).
+std::optional<std::string> pump_of_partitions(const std::vector<std::string>& partitions);
 
 // A sequence<octet> that points at caller-owned bytes (no copy, not freed).
 dds_sequence_octet borrow_octets(const void* data, size_t n);

@@ -71,7 +71,9 @@ struct IngestCounters {
   // stored blocks or ended a run: their difference is the streaming span.
   std::atomic<int64_t> first_block_ns{0}, last_commit_ns{0};
   // Rejections by reason: version, oversized, size, checksum, non_finite,
-  // header, conflict, run_end, monitoring.
+  // header, conflict, run_end, monitoring, pump_partition (a writer bound to
+  // another pump), dds_security (Cyclone's security plugins refused a
+  // remote participant or endpoint: docs/streaming.md, "Security").
   void reject(const std::string& reason);
   int64_t rejected_total() const;
   nlohmann::json to_json() const;

@@ -50,6 +50,10 @@ struct RestOptions {
   bool anonymous_read = false;
   int proposed_reference_runs = 3;        // shown as the proposed reference of a pump without one
   std::size_t max_body_bytes = 8u << 20;  // larger bodies: 413
+  // Both set: HTTPS only (TLS 1.2 or later) with this PEM certificate chain
+  // and key (docs/service.md, "HTTPS"); the constructor throws InputError
+  // naming the file if one is missing, unreadable or not the other's match.
+  std::string tls_cert_path, tls_key_path;
 };
 
 class RestServer {
