@@ -13,6 +13,9 @@ packages=(
   libcpp-httplib-dev
   libclang-rt-14-dev
   python3
+  openssl libssl-dev
+  # The security tests' loopback capture (issue 21); they skip without it.
+  tcpdump
 )
 
 missing=()
