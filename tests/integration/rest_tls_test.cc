@@ -11,13 +11,11 @@ namespace {
 
 constexpr char kToken[] = "TOKEN-THAT-MUST-NOT-CROSS-IN-CLEAR-7f3a";
 
-class RestTlsTest : public StreamTest {
+class RestTlsTest : public PkiTest {
  protected:
-  fs::path pki_dir = dir / "pki";
-  fs::path pki_log = dir / "pki.log";
   void SetUp() override {
-    ASSERT_TRUE(pki("init " + pki_dir.string(), pki_log)) << read_file_bytes(pki_log.string());
-    ASSERT_TRUE(pki("tls " + pki_dir.string() + " localhost 127.0.0.1", pki_log)) << read_file_bytes(pki_log.string());
+    PkiTest::SetUp();
+    pki_ok("tls " + pki_dir.string() + " localhost 127.0.0.1");
   }
   std::unique_ptr<Process> serve_tls(const fs::path& cert, const fs::path& key) {
     return start_server({"--workers", "0", "--tls-cert", cert.string(), "--tls-key", key.string()});

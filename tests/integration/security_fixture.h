@@ -66,4 +66,14 @@ class LoopbackCapture {
   bool available_ = false;
 };
 
+// A streaming test with the plant PKI of its own in the scratch folder.
+class PkiTest : public StreamTest {
+ protected:
+  fs::path pki_dir = dir / "pki";
+  fs::path pki_log = dir / "pki.log";
+  void SetUp() override { pki_ok("init " + pki_dir.string()); }
+  // Runs the deploy script; the test fails (with the script's output) if it does.
+  void pki_ok(const std::string& args) { ASSERT_TRUE(pki(args, pki_log)) << read_file_bytes(pki_log.string()); }
+};
+
 }  // namespace ambdiag::testing

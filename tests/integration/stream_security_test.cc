@@ -15,14 +15,11 @@ namespace {
 // its samples are recognisable in a capture.
 constexpr char kMarker[] = "AMBDIAGSECRET123";
 
-class SecureStreamTest : public StreamTest {
+class SecureStreamTest : public PkiTest {
  protected:
-  fs::path pki_dir = dir / "pki";
-  fs::path pki_log = dir / "pki.log";
-
   void SetUp() override {
-    ASSERT_TRUE(pki("init " + pki_dir.string(), pki_log)) << read_file_bytes(pki_log.string());
-    ASSERT_TRUE(pki("agent " + pki_dir.string() + " P-101 --site " + partition, pki_log)) << read_file_bytes(pki_log.string());
+    PkiTest::SetUp();
+    pki_ok("agent " + pki_dir.string() + " P-101 --site " + partition);
   }
   static std::map<std::string, std::string> secure_env(const fs::path& identity) {
     return {{"CYCLONEDDS_URI", "file://" AMBDIAG_CYCLONE_LOCAL_XML ",file://" + (identity / "security.xml").string()}};
@@ -98,9 +95,9 @@ TEST_F(SecureStreamTest, PlainModeSendsTheSamplesInClear) {
 // claiming another pump's run in its own partition (refused by the server).
 TEST_F(SecureStreamTest, AgentsWithoutRightsGetNothingStored) {
   const fs::path other = dir / "other-pki";
-  ASSERT_TRUE(pki("init " + other.string(), pki_log)) << read_file_bytes(pki_log.string());
-  ASSERT_TRUE(pki("agent " + other.string() + " P-101 --site " + partition, pki_log));
-  ASSERT_TRUE(pki("agent " + pki_dir.string() + " P2 --site " + partition, pki_log));
+  pki_ok("init " + other.string());
+  pki_ok("agent " + other.string() + " P-101 --site " + partition);
+  pki_ok("agent " + pki_dir.string() + " P2 --site " + partition);
   auto server = start_secure_server();
   const int port = rest_port(*server);
   ASSERT_GT(port, 0) << server->log();
