@@ -310,7 +310,7 @@ struct Ingest::Impl {
     ep.end.take(256, [&](const ambdiag_stream_RunEnd& e, const dds_sample_info_t& info) {
       const std::string run_id = e.run_id;
       const auto run = active.find(run_id);
-      if (from_other_pump(ep.end, info, run != active.end() ? run->second.pump_id : std::string(e.pump_id), run_id,
+      if (from_other_pump(ep.end, info, run != active.end() ? run->second.pump_id : std::string(e.pump_id ? e.pump_id : ""), run_id,
                           "run end of a run that"))
         return;
       if (!stream::compatible(e.protocol_version)) {
