@@ -23,7 +23,9 @@ class BenchServer:
         self.token = json.loads(out)["token"]
         log = open(os.path.join(self.tmp, "server.log"), "w+")
         self.proc = subprocess.Popen([self.cli, "serve", "--db", db, "--http-port", "0", "--domain", domain,
-                                      "--partition", partition, *extra], stderr=log, env=self.env)
+                                      "--partition", partition,
+                                      "--rate-limit", "0",  # capacity is measured, not the per-token limit
+                                      *extra], stderr=log, env=self.env)
         self.port = None
         for _ in range(100):
             log.seek(0)
