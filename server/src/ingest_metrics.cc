@@ -19,7 +19,7 @@ void register_ingest_metrics(MetricsRegistry& registry, const Ingest& ingest) {
                        return std::vector<MetricSample>{{{"complete"}, static_cast<double>(c.runs_complete.load())},
                                                         {{"incomplete"}, static_cast<double>(c.runs_incomplete.load())}};
                      });
-  registry.collected("ambdiag_ingest_run_headers_total", "Run headers stored (runs begun).", MetricType::counter, {},
+  registry.collected("ambdiag_ingest_run_headers_total", "Run headers stored (a header an agent sends again counts again; run.new events count runs).", MetricType::counter, {},
                      [&c] { return one(c.headers); });
   registry.collected("ambdiag_ingest_blocks_stored_total", "Sample blocks stored.", MetricType::counter, {},
                      [&c] { return one(c.blocks_stored); });

@@ -112,7 +112,7 @@ TEST_F(ServiceTest, AStreamedRunAndItsAnalysisAppearAsEventsAndInTheMetrics) {
   ASSERT_EQ(r->status, 200);
   const std::string& text = r->body;
   EXPECT_EQ(series(text, R"(ambdiag_ingest_runs_total{outcome="complete"})"), 1) << text;
-  EXPECT_EQ(series(text, "ambdiag_ingest_run_headers_total"), 1) << text;
+  EXPECT_GE(series(text, "ambdiag_ingest_run_headers_total"), 1) << text;  // an agent may send it again
   EXPECT_GT(series(text, "ambdiag_ingest_blocks_stored_total"), 0) << text;
   EXPECT_EQ(series(text, R"(ambdiag_ingest_rejected_samples_total{reason="checksum"})"), 0) << text;
   EXPECT_EQ(series(text, R"(ambdiag_jobs{kind="analysis",status="done"})"), 1) << text;
