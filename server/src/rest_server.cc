@@ -95,13 +95,10 @@ struct RestServer::Impl {
   // each scrape through the reader pool), uptime, event streams.
   void register_metrics() {
     metrics.gauge("ambdiag_build_info", "The server's version (value 1).", {"version"}).with({"0.1.0"}).set(1);
-    metrics.collected("ambdiag_uptime_seconds", "Seconds since the REST server started.", MetricType::gauge, {}, [this] {
-      return std::vector<MetricSample>{{{}, std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}};
-    });
-    metrics.collected("ambdiag_historian_runs", "Runs held by the historian (every status).", MetricType::gauge, {}, [this] {
-      auto h = pool.acquire();
-      return std::vector<MetricSample>{{{}, static_cast<double>(h->count_runs())}};
-    });
+    metrics.collected_value("ambdiag_uptime_seconds", "Seconds since the REST server started.", MetricType::gauge,
+                            [this] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); });
+    metrics.collected_value("ambdiag_historian_runs", "Runs held by the historian (every status).", MetricType::gauge,
+                            [this] { return static_cast<double>(pool.acquire()->count_runs()); });
     metrics.collected("ambdiag_jobs", "Jobs in the historian's queue by kind and status (every server on the database).",
                       MetricType::gauge, {"kind", "status"}, [this] {
                         auto h = pool.acquire();
@@ -110,17 +107,12 @@ struct RestServer::Impl {
                           out.push_back({{key.first, key.second}, static_cast<double>(n)});
                         return out;
                       });
-    metrics.collected("ambdiag_event_streams", "Event streams (GET /api/v1/events) open now.", MetricType::gauge, {}, [this] {
-      return std::vector<MetricSample>{{{}, static_cast<double>(service.open_streams.load())}};
-    });
-    metrics.collected("ambdiag_event_streams_dropped_total", "Event streams closed because their client did not keep up.",
-                      MetricType::counter, {}, [this] {
-                        return std::vector<MetricSample>{{{}, static_cast<double>(events.dropped_total())}};
-                      });
-    metrics.collected("ambdiag_events_last_id", "The id of the newest event published (ids grow by one per event).",
-                      MetricType::gauge, {}, [this] {
-                        return std::vector<MetricSample>{{{}, static_cast<double>(events.last_id())}};
-                      });
+    metrics.collected_value("ambdiag_event_streams", "Event streams (GET /api/v1/events) open now.", MetricType::gauge,
+                            [this] { return static_cast<double>(service.open_streams.load()); });
+    metrics.collected_value("ambdiag_event_streams_dropped_total", "Event streams closed because their client did not keep up.",
+                            MetricType::counter, [this] { return static_cast<double>(events.dropped_total()); });
+    metrics.collected_value("ambdiag_events_last_id", "The id of the newest event published (ids grow by one per event).",
+                            MetricType::gauge, [this] { return static_cast<double>(events.last_id()); });
   }
 
   void count(const std::string& method, const std::string& route, int status, std::chrono::steady_clock::time_point t0) {

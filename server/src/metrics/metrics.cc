@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <type_traits>
 
 namespace ambdiag::server {
 
@@ -145,29 +146,33 @@ MetricsRegistry::Family& MetricsRegistry::add(std::unique_ptr<Family> f) {
   return *families_.back();
 }
 
+template <class M>
+MetricFamily<M>& MetricsRegistry::owned(const std::string& name, const std::string& help, MetricType type,
+                                        std::vector<std::string> labels, std::function<std::unique_ptr<M>()> make) {
+  auto f = std::make_unique<Family>(Family{name, help, type, std::move(labels), {}, {}, {}, {}});
+  auto* family = new MetricFamily<M>(f->labels.size(), std::move(make));
+  if constexpr (std::is_same_v<M, Counter>) f->counters.reset(family);
+  else if constexpr (std::is_same_v<M, Gauge>) f->gauges.reset(family);
+  else f->histograms.reset(family);
+  add(std::move(f));
+  return *family;
+}
+
 MetricFamily<Counter>& MetricsRegistry::counter(const std::string& name, const std::string& help,
                                                 std::vector<std::string> labels) {
-  const size_t n = labels.size();
-  auto f = std::make_unique<Family>(Family{name, help, MetricType::counter, std::move(labels), {}, {}, {}, {}});
-  f->counters.reset(new MetricFamily<Counter>(n, [] { return std::make_unique<Counter>(); }));
-  return *add(std::move(f)).counters;
+  return owned<Counter>(name, help, MetricType::counter, std::move(labels), [] { return std::make_unique<Counter>(); });
 }
 
 MetricFamily<Gauge>& MetricsRegistry::gauge(const std::string& name, const std::string& help,
                                             std::vector<std::string> labels) {
-  const size_t n = labels.size();
-  auto f = std::make_unique<Family>(Family{name, help, MetricType::gauge, std::move(labels), {}, {}, {}, {}});
-  f->gauges.reset(new MetricFamily<Gauge>(n, [] { return std::make_unique<Gauge>(); }));
-  return *add(std::move(f)).gauges;
+  return owned<Gauge>(name, help, MetricType::gauge, std::move(labels), [] { return std::make_unique<Gauge>(); });
 }
 
 MetricFamily<Histogram>& MetricsRegistry::histogram(const std::string& name, const std::string& help,
                                                     std::vector<std::string> labels, std::vector<double> bounds) {
   Histogram check(bounds);  // refuses bad bounds before anything is registered
-  const size_t n = labels.size();
-  auto f = std::make_unique<Family>(Family{name, help, MetricType::histogram, std::move(labels), {}, {}, {}, {}});
-  f->histograms.reset(new MetricFamily<Histogram>(n, [bounds] { return std::make_unique<Histogram>(bounds); }));
-  return *add(std::move(f)).histograms;
+  return owned<Histogram>(name, help, MetricType::histogram, std::move(labels),
+                          [bounds] { return std::make_unique<Histogram>(bounds); });
 }
 
 void MetricsRegistry::collected(const std::string& name, const std::string& help, MetricType type,
@@ -175,6 +180,12 @@ void MetricsRegistry::collected(const std::string& name, const std::string& help
   if (type == MetricType::histogram) throw std::logic_error("metric '" + name + "': a collected family is a counter or a gauge");
   if (!collect) throw std::logic_error("metric '" + name + "': no collector");
   add(std::make_unique<Family>(Family{name, help, type, std::move(labels), {}, {}, {}, std::move(collect)}));
+}
+
+void MetricsRegistry::collected_value(const std::string& name, const std::string& help, MetricType type,
+                                      std::function<double()> value) {
+  if (!value) throw std::logic_error("metric '" + name + "': no collector");
+  collected(name, help, type, {}, [value = std::move(value)] { return std::vector<MetricSample>{{{}, value()}}; });
 }
 
 std::string MetricsRegistry::render() const {

@@ -120,12 +120,18 @@ class MetricsRegistry {
   void collected(const std::string& name, const std::string& help, MetricType type, std::vector<std::string> labels,
                  std::function<std::vector<MetricSample>()> collect);
 
+  // The same for a family of one value without labels.
+  void collected_value(const std::string& name, const std::string& help, MetricType type, std::function<double()> value);
+
   // Every family, text format 0.0.4 (Content-Type text/plain; version=0.0.4).
   std::string render() const;
 
  private:
   struct Family;
   Family& add(std::unique_ptr<Family> f);
+  template <class M>
+  MetricFamily<M>& owned(const std::string& name, const std::string& help, MetricType type, std::vector<std::string> labels,
+                         std::function<std::unique_ptr<M>()> make);
   mutable std::mutex mu_;
   std::vector<std::unique_ptr<Family>> families_;
   Counter* collect_errors_ = nullptr;
