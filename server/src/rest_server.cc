@@ -129,7 +129,7 @@ struct RestServer::Impl {
     } catch (...) {
       send_exception(res, std::current_exception());
     }
-    count(req.method, route, res.status, t0);
+    count(req.method, route, res.status == -1 ? 200 : res.status, t0);  // httplib's default: 200
   }
 
   void dispatch(const httplib::Request& req, httplib::Response& res, std::string& route_label) {

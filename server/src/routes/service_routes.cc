@@ -1,5 +1,6 @@
 #include "routes/service_routes.h"
 
+#include <algorithm>
 #include <memory>
 #include <mutex>
 
@@ -30,11 +31,12 @@ std::optional<std::uint64_t> last_event_id(const httplib::Request& req) {
 
 // The stream holds one of httplib's worker threads while it is open (a
 // content provider runs on the connection's thread), so at most
-// max_event_streams are open at once, the rest of the pool stays for the
-// API; beyond, 503.
+// max_event_streams (and at most half the pool) are open at once, the rest
+// of the pool stays for the API; beyond, 503.
 void events(RouteContext& c, ServiceState& s) {
   const auto last = last_event_id(c.req);
-  const int limit = std::max(0, c.opt.max_event_streams);
+  // Never more than half the workers, whatever is configured.
+  const int limit = std::max(0, std::min(c.opt.max_event_streams, std::max(1, c.opt.worker_threads) / 2));
   if (s.open_streams.fetch_add(1) >= limit) {
     s.open_streams.fetch_sub(1);
     c.res.set_header("Retry-After", "10");

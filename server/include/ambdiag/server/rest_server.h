@@ -64,7 +64,8 @@ struct RestOptions {
   // GET /api/v1/events streams it. Null: the server makes its own (then
   // only what is published to it directly shows).
   EventBus* events = nullptr;
-  // Event streams open at once (each holds a worker thread; 503 beyond),
+  // Event streams open at once (each holds a worker thread; 503 beyond;
+  // never more than half of worker_threads),
   // the heartbeat of an idle stream, and the events queued for a slow
   // client before it is disconnected.
   int max_event_streams = 16;
