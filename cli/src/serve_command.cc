@@ -2,6 +2,7 @@
 // ingest (server/ingest.h) into the historian in FILE, REST read side on
 // port N (0: any free port, printed on stderr); stops cleanly on SIGINT/SIGTERM (ingest drains, the database is
 // closed after its last commit).
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -64,7 +65,7 @@ int run_serve(const std::vector<std::string>& argv) {
   aopt.verbose = opt.verbose;
   const double rate = args.number("--rate-limit").value_or(50);
   if (!(rate >= 0 && rate <= 1e6)) throw UsageError("--rate-limit: must be requests per second in 0..1000000 (0: no limit)");
-  const double burst = args.number("--rate-limit-burst").value_or(2 * rate);
+  const double burst = args.number("--rate-limit-burst").value_or(std::max(1.0, 2 * rate));
   if (!(burst >= 1 && burst <= 1e7)) throw UsageError("--rate-limit-burst: must be in 1..10000000");
 
   std::signal(SIGINT, on_stop_signal);
