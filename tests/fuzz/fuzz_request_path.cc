@@ -37,10 +37,11 @@ void check(bool ok) {
 RouteTable base_table() {
   RouteTable t;
   const auto noop = [](RouteContext&, const PathParams&) {};
-  for (const char* p : {"/api/v1/health", "/metrics", "/api/v1/pumps", "/api/v1/pumps/{pump_id}",
-                        "/api/v1/pumps/{pump_id}/model", "/api/v1/pumps/{pump_id}/trends", "/api/v1/runs/{run_id*}",
-                        "/api/v1/runs/{run_id*}/analysis", "/api/v1/runs/{run_id*}/samples.f32",
-                        "/api/v1/jobs/{job_id}/files/{name}", "/api/v1/alarms/{alarm_id}/ack"})
+  for (const char* p :
+       {"/api/v1/health", "/metrics", "/api/v1/pumps", "/api/v1/pumps/{pump_id}",
+        "/api/v1/pumps/{pump_id}/model", "/api/v1/pumps/{pump_id}/trends", "/api/v1/runs/{run_id*}",
+        "/api/v1/runs/{run_id*}/analysis", "/api/v1/runs/{run_id*}/samples.f32",
+        "/api/v1/jobs/{job_id}/files/{name}", "/api/v1/alarms/{alarm_id}/ack"})
     t.add({"GET", p, std::nullopt, "", noop});
   t.add({"PUT", "/api/v1/pumps/{pump_id}/model", std::nullopt, "", noop});
   t.add({"POST", "/api/v1/alarms/{alarm_id}/ack", std::nullopt, "", noop});
@@ -75,8 +76,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string method = sp == std::string::npos ? "GET" : text.substr(0, sp);
   const std::string target = sp == std::string::npos ? text : text.substr(sp + 1);
 
-  if (const auto d = url_decode_segment(url_encode_segment(target))) check(*d == target);
-  else check(false);
+  if (const auto d = url_decode_segment(url_encode_segment(target)))
+    check(*d == target);
+  else
+    check(false);
 
   const auto segments = split_path(target);
   if (!segments) return 0;  // refused: 400

@@ -24,23 +24,24 @@ class EventStream {
       auto& c = client_;
       c.set_read_timeout(30, 0);
       std::string pending;
-      c.Get("/api/v1/events?access_token=" + token, httplib::Headers{},
-            [&](const httplib::Response& r) {
-              connected_ = r.status == 200;
-              return true;
-            },
-            [&](const char* d, size_t n) {
-        pending.append(d, n);
-        for (size_t end; (end = pending.find("\n\n")) != std::string::npos; pending.erase(0, end + 2)) {
-          std::smatch m;
-          const std::string frame = pending.substr(0, end + 1);
-          if (std::regex_search(frame, m, std::regex("event: (.*)\ndata: (.*)\n"))) {
-            std::lock_guard l(mu_);
-            events_.push_back({m[1], nlohmann::json::parse(m[2].str())});
-          }
-        }
-        return !stop_;
-      });
+      c.Get(
+          "/api/v1/events?access_token=" + token, httplib::Headers{},
+          [&](const httplib::Response& r) {
+            connected_ = r.status == 200;
+            return true;
+          },
+          [&](const char* d, size_t n) {
+            pending.append(d, n);
+            for (size_t end; (end = pending.find("\n\n")) != std::string::npos; pending.erase(0, end + 2)) {
+              std::smatch m;
+              const std::string frame = pending.substr(0, end + 1);
+              if (std::regex_search(frame, m, std::regex("event: (.*)\ndata: (.*)\n"))) {
+                std::lock_guard l(mu_);
+                events_.push_back({m[1], nlohmann::json::parse(m[2].str())});
+              }
+            }
+            return !stop_;
+          });
     });
   }
   bool wait_connected() {
@@ -53,8 +54,8 @@ class EventStream {
     thread_.join();
   }
   // The first event of `type` whose data holds `key` == `value`.
-  std::optional<nlohmann::json> wait_for(const std::string& type, const std::string& key, const std::string& value,
-                                         std::chrono::seconds timeout = 120s) {
+  std::optional<nlohmann::json> wait_for(const std::string& type, const std::string& key,
+                                         const std::string& value, std::chrono::seconds timeout = 120s) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
       {
@@ -87,10 +88,13 @@ double series(const std::string& text, const std::string& name_and_labels) {
 }
 
 TEST_F(ServiceTest, AStreamedRunAndItsAnalysisAppearAsEventsAndInTheMetrics) {
-  start_service({"--rate-limit", "0"});  // no limit (the benchmarks' setting): the burst's default must follow
+  start_service(
+      {"--rate-limit", "0"});  // no limit (the benchmarks' setting): the burst's default must follow
   EventStream events(port, tokens.at("viewer"));  // as a browser's EventSource: the token in the query
   ASSERT_TRUE(events.wait_connected());
-  ASSERT_EQ(put("/api/v1/pumps/P-101/model", read_file_bytes(data_file("reference_pump/plant.json").string()))->status, 200);
+  ASSERT_EQ(put("/api/v1/pumps/P-101/model", read_file_bytes(data_file("reference_pump/plant.json").string()))
+                ->status,
+            200);
   ASSERT_TRUE(events.wait_for("model.new", "pump_id", "P-101", 10s)) << events.seen();
   ASSERT_TRUE(replay(data_file("reference_pump/run_ref_1")));
 
@@ -119,12 +123,18 @@ TEST_F(ServiceTest, AStreamedRunAndItsAnalysisAppearAsEventsAndInTheMetrics) {
   EXPECT_EQ(series(text, R"(ambdiag_job_duration_seconds_count{kind="analysis",outcome="done"})"), 1) << text;
   EXPECT_GT(series(text, R"(ambdiag_job_cpu_seconds_total{kind="analysis"})"), 0) << text;
   EXPECT_EQ(series(text, "ambdiag_event_streams"), 1) << text;
-  EXPECT_GE(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}/model",method="PUT",status="200"})"), 1) << text;
+  EXPECT_GE(
+      series(
+          text,
+          R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}/model",method="PUT",status="200"})"),
+      1)
+      << text;
 
   const fs::path file = dir / "metrics.txt";
   std::ofstream(file) << text;
   const fs::path out = dir / "promtool.log";
-  const int rc = std::system(("promtool check metrics < " + file.string() + " > " + out.string() + " 2>&1").c_str());
+  const int rc =
+      std::system(("promtool check metrics < " + file.string() + " > " + out.string() + " 2>&1").c_str());
   EXPECT_EQ(WEXITSTATUS(rc), 0) << read_file_bytes(out.string());
   EXPECT_EQ(read_file_bytes(out.string()), "");
 }

@@ -25,7 +25,8 @@ TEST(EventBus, SubscribersGetEventsInOrderWithIncreasingIds) {
   EXPECT_EQ(got[0].id, a);
   EXPECT_EQ(got[0].type, "run.new");
   EXPECT_EQ(nlohmann::json::parse(got[1].data)["status"], "complete");
-  EXPECT_EQ(sse_frame(got[0]), "id: " + std::to_string(a) + "\nevent: run.new\ndata: {\"run_id\":\"r1\"}\n\n");
+  EXPECT_EQ(sse_frame(got[0]),
+            "id: " + std::to_string(a) + "\nevent: run.new\ndata: {\"run_id\":\"r1\"}\n\n");
   EXPECT_TRUE(sub->wait(20ms).empty());  // nothing more: the wait times out
 }
 

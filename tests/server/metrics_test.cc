@@ -10,7 +10,9 @@
 namespace ambdiag::server {
 namespace {
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
 
 TEST(Metrics, CountersAndGaugesRenderWithHelpTypeAndEscapedLabels) {
   MetricsRegistry r;
@@ -49,7 +51,8 @@ TEST(Metrics, ACollectedFamilyIsReadAtEachScrapeAndOneThatThrowsShowsNoSamples) 
     if (fail) throw std::runtime_error("database gone");
     return std::vector<MetricSample>{{{"high"}, v}, {{"low"}, 2 * v}};
   });
-  EXPECT_TRUE(contains(r.render(), "x_alarms_active{severity=\"high\"} 1\nx_alarms_active{severity=\"low\"} 2\n"));
+  EXPECT_TRUE(
+      contains(r.render(), "x_alarms_active{severity=\"high\"} 1\nx_alarms_active{severity=\"low\"} 2\n"));
   v = 3;
   EXPECT_TRUE(contains(r.render(), "x_alarms_active{severity=\"high\"} 3\n"));
   fail = true;

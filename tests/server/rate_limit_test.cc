@@ -32,7 +32,8 @@ TEST(RateLimiter, ZeroIsNoLimit) {
 TEST(RateLimiter, ManyKeysAreForgottenOnceTheirBucketsAreFullAgain) {
   RateLimiter l(10, 2);
   const auto t0 = RateLimiter::Clock::time_point{} + 1h;
-  for (int i = 0; i < 20000; ++i) EXPECT_EQ(l.take("address " + std::to_string(i), t0 + std::chrono::milliseconds(i)), 0);
+  for (int i = 0; i < 20000; ++i)
+    EXPECT_EQ(l.take("address " + std::to_string(i), t0 + std::chrono::milliseconds(i)), 0);
   // A key seen long ago starts with a full bucket, as a forgotten one would.
   EXPECT_EQ(l.take("address 0", t0 + 1h), 0);
   EXPECT_EQ(l.take("address 0", t0 + 1h), 0);

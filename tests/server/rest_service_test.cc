@@ -72,7 +72,9 @@ class RestService : public ::testing::Test {
     c.set_read_timeout(10, 0);
     return c;
   }
-  httplib::Headers auth(const std::string& who) const { return {{"Authorization", "Bearer " + tokens_.at(who)}}; }
+  httplib::Headers auth(const std::string& who) const {
+    return {{"Authorization", "Bearer " + tokens_.at(who)}};
+  }
 
   struct Answer {
     int status = 0;
@@ -83,16 +85,17 @@ class RestService : public ::testing::Test {
     auto c = client();
     Answer a;
     if (method == "GET") {
-      c.Get(path, auth(who),
-            [&](const httplib::Response& r) {
-              a.status = r.status;
-              a.content_type = r.get_header_value("Content-Type");
-              return true;
-            },
-            [&](const char* d, size_t n) {
-              a.body.append(d, n);
-              return a.content_type.rfind("text/event-stream", 0) != 0;
-            });
+      c.Get(
+          path, auth(who),
+          [&](const httplib::Response& r) {
+            a.status = r.status;
+            a.content_type = r.get_header_value("Content-Type");
+            return true;
+          },
+          [&](const char* d, size_t n) {
+            a.body.append(d, n);
+            return a.content_type.rfind("text/event-stream", 0) != 0;
+          });
       return a;
     }
     httplib::Result r = method == "POST"    ? c.Post(path, auth(who), "{}", "application/json")
@@ -138,10 +141,15 @@ TEST_F(RestService, TheOpenApiDocumentListsEveryRouteTheServerAnswersAndEachAnsw
   EXPECT_EQ(doc["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
 
   // rest.md's routes and the service's own are documented.
-  for (const auto& [path, method] : std::vector<std::pair<std::string, std::string>>{
-           {"/api/v1/health", "get"}, {"/metrics", "get"}, {"/api/v1/events", "get"}, {"/api/v1/openapi.json", "get"},
-           {"/api/v1/pumps/{pump_id}/model", "put"}, {"/api/v1/runs/{run_id}/analysis", "get"},
-           {"/api/v1/jobs/{job_id}", "get"}, {"/api/v1/runs/{run_id}/samples.f32", "get"}})
+  for (const auto& [path, method] :
+       std::vector<std::pair<std::string, std::string>>{{"/api/v1/health", "get"},
+                                                        {"/metrics", "get"},
+                                                        {"/api/v1/events", "get"},
+                                                        {"/api/v1/openapi.json", "get"},
+                                                        {"/api/v1/pumps/{pump_id}/model", "put"},
+                                                        {"/api/v1/runs/{run_id}/analysis", "get"},
+                                                        {"/api/v1/jobs/{job_id}", "get"},
+                                                        {"/api/v1/runs/{run_id}/samples.f32", "get"}})
     EXPECT_TRUE(doc["paths"].contains(path) && doc["paths"][path].contains(method)) << method << " " << path;
 
   const std::map<std::string, std::string> values = {{"pump_id", "P-101"},
@@ -152,7 +160,8 @@ TEST_F(RestService, TheOpenApiDocumentListsEveryRouteTheServerAnswersAndEachAnsw
   for (const auto& [path, item] : doc["paths"].items()) {
     EXPECT_EQ(path.find('*'), std::string::npos) << path;
     std::string concrete = path;
-    for (const auto& [name, value] : values) concrete = std::regex_replace(concrete, std::regex("\\{" + name + "\\}"), value);
+    for (const auto& [name, value] : values)
+      concrete = std::regex_replace(concrete, std::regex("\\{" + name + "\\}"), value);
     // Parameters of routes added later (an alarm_id, ...): any value reaches the route.
     concrete = std::regex_replace(concrete, std::regex("\\{[A-Za-z0-9_]+\\}"), "1");
     for (const std::string method : {"GET", "POST", "PUT", "PATCH", "DELETE"}) {
@@ -164,11 +173,13 @@ TEST_F(RestService, TheOpenApiDocumentListsEveryRouteTheServerAnswersAndEachAnsw
         const json& op = item[lower];
         // Documented: it answers, as a route (not the 404 of an unknown path, not 405).
         EXPECT_NE(a.status, 405) << method << " " << concrete << ": " << a.body.substr(0, 300);
-        EXPECT_FALSE(a.status == 404 && a.body.find("no such resource") != std::string::npos) << method << " " << concrete;
+        EXPECT_FALSE(a.status == 404 && a.body.find("no such resource") != std::string::npos)
+            << method << " " << concrete;
         EXPECT_TRUE(op.contains("x-ambdiag-role")) << method << " " << path;
         EXPECT_TRUE(op["responses"].contains("400")) << method << " " << path;
         if (op["x-ambdiag-role"] != "none") {
-          EXPECT_TRUE(op["responses"].contains("401") && op["responses"].contains("403")) << method << " " << path;
+          EXPECT_TRUE(op["responses"].contains("401") && op["responses"].contains("403"))
+              << method << " " << path;
         } else {
           EXPECT_EQ(op["security"], json::array()) << path;
         }
@@ -178,7 +189,8 @@ TEST_F(RestService, TheOpenApiDocumentListsEveryRouteTheServerAnswersAndEachAnsw
           }
       } else {
         // Not documented: the server does not answer it either.
-        EXPECT_EQ(a.status, 405) << method << " " << concrete << " answers but is not in the document: " << a.body;
+        EXPECT_EQ(a.status, 405) << method << " " << concrete
+                                 << " answers but is not in the document: " << a.body;
       }
     }
   }
@@ -190,21 +202,26 @@ TEST_F(RestService, TheOpenApiDocumentListsEveryRouteTheServerAnswersAndEachAnsw
 
 TEST_F(RestService, AnIndependentOpenApiValidatorAcceptsTheDocument) {
   const fs::path tool = fs::path(AMBDIAG_SOURCE_DIR) / "tests/tools/openapi";
-  if (!fs::exists(tool / "node_modules/@seriousme/openapi-schema-validator") || std::system("node --version > /dev/null 2>&1") != 0)
+  if (!fs::exists(tool / "node_modules/@seriousme/openapi-schema-validator") ||
+      std::system("node --version > /dev/null 2>&1") != 0)
     GTEST_SKIP() << "the validator is not installed (deploy/install-deps.sh runs npm ci in " << tool << ")";
   start();
   const auto r = client().Get("/api/v1/openapi.json", auth("viewer"));
   ASSERT_TRUE(r && r->status == 200);
   const fs::path file = dir_ / "openapi.json";
   std::ofstream(file) << r->body;
-  const auto [rc, out] = run_command("node " + (tool / "validate.mjs").string() + " " + file.string(), dir_ / "validate.log");
+  const auto [rc, out] =
+      run_command("node " + (tool / "validate.mjs").string() + " " + file.string(), dir_ / "validate.log");
   EXPECT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("valid (3.1)"), std::string::npos) << out;
   // And it refuses a broken one: the check can fail.
   json broken = json::parse(r->body);
   broken["paths"]["/api/v1/pumps"]["get"]["responses"]["200"] = 42;
   std::ofstream(dir_ / "broken.json") << broken.dump();
-  EXPECT_NE(run_command("node " + (tool / "validate.mjs").string() + " " + (dir_ / "broken.json").string(), dir_ / "broken.log").first, 0);
+  EXPECT_NE(run_command("node " + (tool / "validate.mjs").string() + " " + (dir_ / "broken.json").string(),
+                        dir_ / "broken.log")
+                .first,
+            0);
 }
 
 TEST_F(RestService, PromtoolAcceptsTheMetricsAndTheCountersMove) {
@@ -214,25 +231,45 @@ TEST_F(RestService, PromtoolAcceptsTheMetricsAndTheCountersMove) {
   EXPECT_EQ(client().Get("/api/v1/pumps")->status, 401);
   EXPECT_EQ(client().Get("/api/v1/pumps/P-404", auth("viewer"))->status, 404);
   // A new model queues the pump's run: the jobs table has one queued analysis.
-  const std::string plant = read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string());
+  const std::string plant =
+      read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string());
   EXPECT_EQ(client().Put("/api/v1/pumps/P-101/model", auth("admin"), plant, "application/json")->status, 200);
 
   std::string text = metrics_text();
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="200"})"), 1) << text;
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="401"})"), 1) << text;
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="unmatched",method="GET",status="404"})"), 1) << text;
+  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="200"})"),
+            1)
+      << text;
+  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="401"})"),
+            1)
+      << text;
+  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="unmatched",method="GET",status="404"})"), 1)
+      << text;
   // A 404 of a known route is labelled by its pattern, never by the raw path.
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}",method="GET",status="404"})"), 1) << text;
+  EXPECT_EQ(
+      series(text,
+             R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}",method="GET",status="404"})"),
+      1)
+      << text;
   EXPECT_EQ(text.find("P-404"), std::string::npos);
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}/model",method="PUT",status="200"})"), 1) << text;
-  EXPECT_EQ(series(text, R"(ambdiag_http_request_duration_seconds_count{route="/api/v1/pumps",method="GET"})"), 2) << text;
+  EXPECT_EQ(
+      series(
+          text,
+          R"(ambdiag_http_requests_total{route="/api/v1/pumps/{pump_id}/model",method="PUT",status="200"})"),
+      1)
+      << text;
+  EXPECT_EQ(
+      series(text, R"(ambdiag_http_request_duration_seconds_count{route="/api/v1/pumps",method="GET"})"), 2)
+      << text;
   EXPECT_EQ(series(text, R"(ambdiag_jobs{kind="analysis",status="queued"})"), 1) << text;
   EXPECT_EQ(series(text, "ambdiag_historian_runs"), 1) << text;
   client().Get("/api/v1/pumps", auth("viewer"));
   text = metrics_text();
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="200"})"), 2) << text;
+  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/api/v1/pumps",method="GET",status="200"})"),
+            2)
+      << text;
   // The first scrape is counted too, under its own route.
-  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/metrics",method="GET",status="200"})"), 1) << text;
+  EXPECT_EQ(series(text, R"(ambdiag_http_requests_total{route="/metrics",method="GET",status="200"})"), 1)
+      << text;
 
   const fs::path file = dir_ / "metrics.txt";
   std::ofstream(file) << text;
@@ -250,16 +287,17 @@ class StreamReader {
     thread_ = std::thread([this, port, headers = std::move(headers), path = std::move(path)] {
       httplib::Client c("127.0.0.1", port);
       c.set_read_timeout(5, 0);
-      c.Get(path, headers,
-            [&](const httplib::Response& r) {
-              status_ = r.status;
-              return true;
-            },
-            [&](const char* d, size_t n) {
-              std::lock_guard l(mu_);
-              text_.append(d, n);
-              return !stop_;
-            });
+      c.Get(
+          path, headers,
+          [&](const httplib::Response& r) {
+            status_ = r.status;
+            return true;
+          },
+          [&](const char* d, size_t n) {
+            std::lock_guard l(mu_);
+            text_.append(d, n);
+            return !stop_;
+          });
       done_ = true;
     });
   }
@@ -293,14 +331,16 @@ class StreamReader {
 
 TEST_F(RestService, AnEventStreamCarriesANewModelAndAReconnectGetsWhatItMissed) {
   start();
-  const std::string plant = read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string());
+  const std::string plant =
+      read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string());
   std::string first_id;
   {
     // A browser's EventSource: the token in the query, on this route only.
     StreamReader s(port_, {}, "/api/v1/events?access_token=" + tokens_.at("viewer"));
     ASSERT_TRUE(s.wait_for(": ambdiag events")) << s.status() << s.text();
     EXPECT_EQ(s.status(), 200);
-    ASSERT_EQ(client().Put("/api/v1/pumps/P-101/model", auth("admin"), plant, "application/json")->status, 200);
+    ASSERT_EQ(client().Put("/api/v1/pumps/P-101/model", auth("admin"), plant, "application/json")->status,
+              200);
     ASSERT_TRUE(s.wait_for("event: model.new\ndata: {")) << s.text();
     const std::string text = s.text();
     const std::smatch m = [&] {
@@ -333,7 +373,8 @@ TEST_F(RestService, AnEventStreamCarriesANewModelAndAReconnectGetsWhatItMissed) 
   }
   // The query token is refused where it is not allowed, and on the stream when it is wrong.
   EXPECT_EQ(client().Get("/api/v1/pumps?access_token=" + tokens_.at("viewer"))->status, 401);
-  EXPECT_EQ(request("GET", "/api/v1/events?access_token=nope", "viewer").status, 200);  // the header's token counts first
+  EXPECT_EQ(request("GET", "/api/v1/events?access_token=nope", "viewer").status,
+            200);  // the header's token counts first
   EXPECT_EQ(client().Get("/api/v1/events?access_token=nope")->status, 401);
   auto bad = auth("viewer");
   bad.emplace("Last-Event-ID", "12x");
@@ -372,7 +413,9 @@ TEST_F(RestService, ABurstBeyondTheRateLimitIs429AndAnotherTokenIsNotAffected) {
   const auto r = client().Get("/api/v1/pumps", auth("viewer"));
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 429);
-  EXPECT_NE(json::parse(r->body)["error"].get<std::string>().find("rate limit of token 'viewer'"), std::string::npos) << r->body;
+  EXPECT_NE(json::parse(r->body)["error"].get<std::string>().find("rate limit of token 'viewer'"),
+            std::string::npos)
+      << r->body;
   EXPECT_GE(std::stoi(r->get_header_value("Retry-After")), 1);
   // Another token (same role, same address) has its own bucket.
   EXPECT_EQ(client().Get("/api/v1/pumps", auth("viewer2"))->status, 200);

@@ -14,8 +14,9 @@ struct EventBus::Subscription::Queue {
 
 EventBus::EventBus(std::size_t ring_capacity)
     : capacity_(std::max<std::size_t>(1, ring_capacity)),
-      next_id_(static_cast<std::uint64_t>(
-          std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count())) {}
+      next_id_(static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                              std::chrono::system_clock::now().time_since_epoch())
+                                              .count())) {}
 
 EventBus::~EventBus() { close(); }
 
@@ -40,7 +41,8 @@ std::uint64_t EventBus::publish(const std::string& type, const nlohmann::json& d
   return e.id;
 }
 
-std::unique_ptr<EventBus::Subscription> EventBus::subscribe(std::optional<std::uint64_t> last_id, std::size_t max_queue) {
+std::unique_ptr<EventBus::Subscription> EventBus::subscribe(std::optional<std::uint64_t> last_id,
+                                                            std::size_t max_queue) {
   auto q = std::make_shared<Subscription::Queue>();
   q->max = std::max<std::size_t>(1, max_queue);
   std::lock_guard l(mu_);
@@ -50,8 +52,9 @@ std::unique_ptr<EventBus::Subscription> EventBus::subscribe(std::optional<std::u
     const std::uint64_t oldest_held = ring_.empty() ? next_id_ : ring_.front().id;
     if (*last_id > newest || *last_id + 1 < oldest_held) {
       const nlohmann::json d = {
-          {"reason", *last_id > newest ? "Last-Event-ID " + std::to_string(*last_id) + " is not of this server's events"
-                                       : "events after " + std::to_string(*last_id) + " are no longer held"},
+          {"reason", *last_id > newest
+                         ? "Last-Event-ID " + std::to_string(*last_id) + " is not of this server's events"
+                         : "events after " + std::to_string(*last_id) + " are no longer held"},
           {"last_event_id", newest}};
       q->events.push_back({newest, "reload", d.dump()});
     } else {
@@ -97,7 +100,8 @@ std::vector<Event> EventBus::Subscription::wait(std::chrono::milliseconds timeou
   std::unique_lock l(q_->mu);
   q_->cv.wait_for(l, timeout, [&] { return !q_->events.empty() || q_->dropped || q_->closed; });
   if (q_->dropped || q_->closed) return {};
-  std::vector<Event> out(std::make_move_iterator(q_->events.begin()), std::make_move_iterator(q_->events.end()));
+  std::vector<Event> out(std::make_move_iterator(q_->events.begin()),
+                         std::make_move_iterator(q_->events.end()));
   q_->events.clear();
   return out;
 }

@@ -26,16 +26,20 @@ bool ends_with(const std::string& s, const std::string& tail) {
 
 const char* type_name(MetricType t) {
   switch (t) {
-    case MetricType::counter: return "counter";
-    case MetricType::gauge: return "gauge";
-    case MetricType::histogram: return "histogram";
+    case MetricType::counter:
+      return "counter";
+    case MetricType::gauge:
+      return "gauge";
+    case MetricType::histogram:
+      return "histogram";
   }
   return "untyped";
 }
 
 // name{a="x",b="y"} value
-void sample_line(std::string& out, const std::string& name, const std::vector<std::string>& names, const LabelValues& values,
-                 double v, const std::string& extra_name = {}, const std::string& extra_value = {}) {
+void sample_line(std::string& out, const std::string& name, const std::vector<std::string>& names,
+                 const LabelValues& values, double v, const std::string& extra_name = {},
+                 const std::string& extra_value = {}) {
   out += name;
   if (!names.empty() || !extra_name.empty()) {
     out += '{';
@@ -58,10 +62,14 @@ std::string escape_label_value(const std::string& v) {
   std::string out;
   out.reserve(v.size());
   for (const char c : v) {
-    if (c == '\\') out += "\\\\";
-    else if (c == '"') out += "\\\"";
-    else if (c == '\n') out += "\\n";
-    else out += c;
+    if (c == '\\')
+      out += "\\\\";
+    else if (c == '"')
+      out += "\\\"";
+    else if (c == '\n')
+      out += "\\n";
+    else
+      out += c;
   }
   return out;
 }
@@ -69,9 +77,12 @@ std::string escape_label_value(const std::string& v) {
 std::string escape_help(const std::string& v) {
   std::string out;
   for (const char c : v) {
-    if (c == '\\') out += "\\\\";
-    else if (c == '\n') out += "\\n";
-    else out += c;
+    if (c == '\\')
+      out += "\\\\";
+    else if (c == '\n')
+      out += "\\n";
+    else
+      out += c;
   }
   return out;
 }
@@ -84,7 +95,8 @@ std::string format_metric_value(double v) {
   return std::string(buf, r.ptr);
 }
 
-Histogram::Histogram(std::vector<double> bounds) : bounds_(std::move(bounds)), counts_(bounds_.size() + 1, 0) {
+Histogram::Histogram(std::vector<double> bounds)
+    : bounds_(std::move(bounds)), counts_(bounds_.size() + 1, 0) {
   for (size_t i = 0; i < bounds_.size(); ++i)
     if (!std::isfinite(bounds_[i]) || (i > 0 && bounds_[i] <= bounds_[i - 1]))
       throw std::logic_error("histogram bounds must be finite and ascending");
@@ -133,7 +145,8 @@ MetricsRegistry::~MetricsRegistry() = default;
 // never sees one half made.
 MetricsRegistry::Family& MetricsRegistry::add(std::unique_ptr<Family> f) {
   const std::string& name = f->name;
-  if (!valid_name(name, true)) throw std::logic_error("metric name '" + name + "' is not [a-zA-Z_:][a-zA-Z0-9_:]*");
+  if (!valid_name(name, true))
+    throw std::logic_error("metric name '" + name + "' is not [a-zA-Z_:][a-zA-Z0-9_:]*");
   if ((f->type == MetricType::counter) != ends_with(name, "_total"))
     throw std::logic_error("metric '" + name + "': counters, and only counters, end in _total");
   for (const auto& l : f->labels)
@@ -148,36 +161,45 @@ MetricsRegistry::Family& MetricsRegistry::add(std::unique_ptr<Family> f) {
 
 template <class M>
 MetricFamily<M>& MetricsRegistry::owned(const std::string& name, const std::string& help, MetricType type,
-                                        std::vector<std::string> labels, std::function<std::unique_ptr<M>()> make) {
+                                        std::vector<std::string> labels,
+                                        std::function<std::unique_ptr<M>()> make) {
   auto f = std::make_unique<Family>(Family{name, help, type, std::move(labels), {}, {}, {}, {}});
   auto* family = new MetricFamily<M>(f->labels.size(), std::move(make));
-  if constexpr (std::is_same_v<M, Counter>) f->counters.reset(family);
-  else if constexpr (std::is_same_v<M, Gauge>) f->gauges.reset(family);
-  else f->histograms.reset(family);
+  if constexpr (std::is_same_v<M, Counter>)
+    f->counters.reset(family);
+  else if constexpr (std::is_same_v<M, Gauge>)
+    f->gauges.reset(family);
+  else
+    f->histograms.reset(family);
   add(std::move(f));
   return *family;
 }
 
 MetricFamily<Counter>& MetricsRegistry::counter(const std::string& name, const std::string& help,
                                                 std::vector<std::string> labels) {
-  return owned<Counter>(name, help, MetricType::counter, std::move(labels), [] { return std::make_unique<Counter>(); });
+  return owned<Counter>(name, help, MetricType::counter, std::move(labels),
+                        [] { return std::make_unique<Counter>(); });
 }
 
 MetricFamily<Gauge>& MetricsRegistry::gauge(const std::string& name, const std::string& help,
                                             std::vector<std::string> labels) {
-  return owned<Gauge>(name, help, MetricType::gauge, std::move(labels), [] { return std::make_unique<Gauge>(); });
+  return owned<Gauge>(name, help, MetricType::gauge, std::move(labels),
+                      [] { return std::make_unique<Gauge>(); });
 }
 
 MetricFamily<Histogram>& MetricsRegistry::histogram(const std::string& name, const std::string& help,
-                                                    std::vector<std::string> labels, std::vector<double> bounds) {
+                                                    std::vector<std::string> labels,
+                                                    std::vector<double> bounds) {
   Histogram check(bounds);  // refuses bad bounds before anything is registered
   return owned<Histogram>(name, help, MetricType::histogram, std::move(labels),
                           [bounds] { return std::make_unique<Histogram>(bounds); });
 }
 
 void MetricsRegistry::collected(const std::string& name, const std::string& help, MetricType type,
-                                std::vector<std::string> labels, std::function<std::vector<MetricSample>()> collect) {
-  if (type == MetricType::histogram) throw std::logic_error("metric '" + name + "': a collected family is a counter or a gauge");
+                                std::vector<std::string> labels,
+                                std::function<std::vector<MetricSample>()> collect) {
+  if (type == MetricType::histogram)
+    throw std::logic_error("metric '" + name + "': a collected family is a counter or a gauge");
   if (!collect) throw std::logic_error("metric '" + name + "': no collector");
   add(std::make_unique<Family>(Family{name, help, type, std::move(labels), {}, {}, {}, std::move(collect)}));
 }
@@ -185,7 +207,9 @@ void MetricsRegistry::collected(const std::string& name, const std::string& help
 void MetricsRegistry::collected_value(const std::string& name, const std::string& help, MetricType type,
                                       std::function<double()> value) {
   if (!value) throw std::logic_error("metric '" + name + "': no collector");
-  collected(name, help, type, {}, [value = std::move(value)] { return std::vector<MetricSample>{{{}, value()}}; });
+  collected(name, help, type, {}, [value = std::move(value)] {
+    return std::vector<MetricSample>{{{}, value()}};
+  });
 }
 
 std::string MetricsRegistry::render() const {
@@ -201,9 +225,11 @@ std::string MetricsRegistry::render() const {
       try {
         auto samples = f->collect();
         // One line per label values: the format forbids repeating a series.
-        std::sort(samples.begin(), samples.end(), [](const auto& a, const auto& b) { return a.labels < b.labels; });
+        std::sort(samples.begin(), samples.end(),
+                  [](const auto& a, const auto& b) { return a.labels < b.labels; });
         for (size_t i = 0; i < samples.size(); ++i) {
-          if (samples[i].labels.size() != f->labels.size()) throw std::logic_error("wrong number of label values");
+          if (samples[i].labels.size() != f->labels.size())
+            throw std::logic_error("wrong number of label values");
           if (i > 0 && samples[i].labels == samples[i - 1].labels) continue;
           sample_line(body, f->name, f->labels, samples[i].labels, samples[i].value);
         }
@@ -213,17 +239,19 @@ std::string MetricsRegistry::render() const {
       }
     } else if (f->counters) {
       std::lock_guard l(f->counters->mu_);
-      for (const auto& [values, c] : f->counters->children_) sample_line(body, f->name, f->labels, values, c->value());
+      for (const auto& [values, c] : f->counters->children_)
+        sample_line(body, f->name, f->labels, values, c->value());
     } else if (f->gauges) {
       std::lock_guard l(f->gauges->mu_);
-      for (const auto& [values, g] : f->gauges->children_) sample_line(body, f->name, f->labels, values, g->value());
+      for (const auto& [values, g] : f->gauges->children_)
+        sample_line(body, f->name, f->labels, values, g->value());
     } else if (f->histograms) {
       std::lock_guard l(f->histograms->mu_);
       for (const auto& [values, h] : f->histograms->children_) {
         const auto s = h->snapshot();
         for (size_t i = 0; i < s.cumulative.size(); ++i)
-          sample_line(body, f->name + "_bucket", f->labels, values, static_cast<double>(s.cumulative[i]), "le",
-                      i < s.bounds.size() ? format_metric_value(s.bounds[i]) : "+Inf");
+          sample_line(body, f->name + "_bucket", f->labels, values, static_cast<double>(s.cumulative[i]),
+                      "le", i < s.bounds.size() ? format_metric_value(s.bounds[i]) : "+Inf");
         sample_line(body, f->name + "_sum", f->labels, values, s.sum);
         sample_line(body, f->name + "_count", f->labels, values, static_cast<double>(s.cumulative.back()));
       }

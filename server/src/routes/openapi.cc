@@ -23,9 +23,12 @@ constexpr ErrorResponse kErrors[] = {
     {404, "NotFound", "no such resource (unknown pump, run, job, alarm or path)"},
     {409, "Conflict", "the state does not allow the request"},
     {413, "PayloadTooLarge", "the body is larger than the server accepts (8 MiB by default)"},
-    {429, "TooManyRequests", "the token's (or, without one, the address') request rate is over the limit; Retry-After says when to retry"},
+    {429, "TooManyRequests",
+     "the token's (or, without one, the address') request rate is over the limit; Retry-After says when to "
+     "retry"},
     {500, "ServerError", "a server fault"},
-    {503, "Unavailable", "not served now: a write on a server without the analysis service, or too many event streams open"},
+    {503, "Unavailable",
+     "not served now: a write on a server without the analysis service, or too many event streams open"},
 };
 
 json error_ref(int status) {
@@ -40,7 +43,9 @@ json components() {
   for (const auto& e : kErrors) {
     json r = {{"description", e.description}, {"content", error_content}};
     if (e.status == 429)
-      r["headers"] = {{"Retry-After", {{"description", "seconds until a request is allowed again"}, {"schema", {{"type", "integer"}}}}}};
+      r["headers"] = {
+          {"Retry-After",
+           {{"description", "seconds until a request is allowed again"}, {"schema", {{"type", "integer"}}}}}};
     if (e.status == 401)
       r["headers"] = {{"WWW-Authenticate", {{"description", "Bearer"}, {"schema", {{"type", "string"}}}}}};
     responses[e.name] = r;
@@ -49,27 +54,37 @@ json components() {
            {{"Error",
              {{"type", "object"},
               {"required", {"error"}},
-              {"properties", {{"error", {{"type", "string"}, {"description", "what is wrong, naming the field, parameter or state"}}}}}}}}},
+              {"properties",
+               {{"error",
+                 {{"type", "string"},
+                  {"description", "what is wrong, naming the field, parameter or state"}}}}}}}}},
           {"responses", responses},
           {"securitySchemes",
            {{"bearer",
              {{"type", "http"},
               {"scheme", "bearer"},
-              {"description", "a token from `ambdiag token add` (only its hash is stored); its role: viewer < operator < engineer < admin"}}},
+              {"description",
+               "a token from `ambdiag token add` (only its hash is stored); its role: viewer < operator < "
+               "engineer < admin"}}},
             {"access_token",
              {{"type", "apiKey"},
               {"in", "query"},
               {"name", "access_token"},
-              {"description", "the same token as ?access_token=, only on the routes that say so (a browser's EventSource cannot set headers)"}}}}}};
+              {"description",
+               "the same token as ?access_token=, only on the routes that say so (a browser's EventSource "
+               "cannot set headers)"}}}}}};
 }
 
-std::string operation_id(const std::string& method, const std::string& pattern, std::set<std::string>& taken) {
+std::string operation_id(const std::string& method, const std::string& pattern,
+                         std::set<std::string>& taken) {
   std::string id;
   for (const char c : method) id += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   for (const char c : pattern) {
     const bool word = std::isalnum(static_cast<unsigned char>(c)) != 0;
-    if (word) id += c;
-    else if (id.back() != '_') id += '_';
+    if (word)
+      id += c;
+    else if (id.back() != '_')
+      id += '_';
   }
   while (id.back() == '_') id.pop_back();
   std::string unique = id;
@@ -82,7 +97,8 @@ json content_schema(const std::string& type) {
   return {{"type", "string"}};
 }
 
-json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool anonymous_read, std::set<std::string>& ids) {
+json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool anonymous_read,
+               std::set<std::string>& ids) {
   const std::string role = r.role ? storage::to_string(*r.role) : "none";
   std::string description = r.summary + ".";
   if (!r.description.empty()) description += " " + r.description;
@@ -96,12 +112,13 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
   json params = json::array();
   for (const auto& s : pattern) {
     if (!s.param) continue;
-    params.push_back({{"name", s.text},
-                      {"in", "path"},
-                      {"required", true},
-                      {"schema", {{"type", "string"}}},
-                      {"description", s.rest ? "URL-encoded ('/' as %2F, ':' as %3A); an unencoded '/' is accepted too"
-                                             : "URL-encoded path segment"}});
+    params.push_back(
+        {{"name", s.text},
+         {"in", "path"},
+         {"required", true},
+         {"schema", {{"type", "string"}}},
+         {"description", s.rest ? "URL-encoded ('/' as %2F, ':' as %3A); an unencoded '/' is accepted too"
+                                : "URL-encoded path segment"}});
   }
   for (const auto& q : r.query) {
     json p = {{"name", q.name}, {"in", "query"}, {"required", q.required}, {"description", q.description}};
@@ -117,14 +134,19 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
   if (!params.empty()) op["parameters"] = params;
 
   if (!r.body.empty())
-    op["requestBody"] = {{"required", true}, {"description", r.body}, {"content", {{r.body_type, {{"schema", content_schema(r.body_type)}}}}}};
+    op["requestBody"] = {{"required", true},
+                         {"description", r.body},
+                         {"content", {{r.body_type, {{"schema", content_schema(r.body_type)}}}}}};
 
   json responses = {{std::to_string(r.status),
-                     {{"description", r.summary}, {"content", {{r.response_type, {{"schema", content_schema(r.response_type)}}}}}}}};
+                     {{"description", r.summary},
+                      {"content", {{r.response_type, {{"schema", content_schema(r.response_type)}}}}}}}};
   std::vector<int> errors = {400, 404, 500};
   if (r.role) errors.insert(errors.end(), {401, 403, 429});
-  if (r.method != "GET") errors.insert(errors.end(), {409, 413, 503});
-  else if (r.token_in_query) errors.push_back(503);
+  if (r.method != "GET")
+    errors.insert(errors.end(), {409, 413, 503});
+  else if (r.token_in_query)
+    errors.push_back(503);
   for (const int e : errors) responses[std::to_string(e)] = error_ref(e);
   op["responses"] = responses;
 
@@ -133,7 +155,8 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
   } else {
     json sec = json::array({{{"bearer", json::array()}}});
     if (r.token_in_query) sec.push_back({{"access_token", json::array()}});
-    if (anonymous_read && *r.role == storage::Role::viewer) sec.push_back(json::object());  // --anonymous-read
+    if (anonymous_read && *r.role == storage::Role::viewer)
+      sec.push_back(json::object());  // --anonymous-read
     op["security"] = sec;
   }
   return op;
@@ -160,11 +183,15 @@ json openapi_document(const RouteTable& table, bool anonymous_read) {
           {"info",
            {{"title", "ambdiag"},
             {"version", "0.1.0"},
-            {"summary", "model-based fault diagnosis of pumps in active magnetic bearings: runs, analyses, jobs, trends, alarms"},
+            {"summary",
+             "model-based fault diagnosis of pumps in active magnetic bearings: runs, analyses, jobs, "
+             "trends, alarms"},
             {"description",
-             "Generated from the server's route table, so it lists every route this server answers. Errors are the status "
+             "Generated from the server's route table, so it lists every route this server answers. Errors "
+             "are the status "
              "and {\"error\": \"message\"}. Every request but the open routes (x-ambdiag-role: none) needs "
-             "`Authorization: Bearer TOKEN` with at least the route's role (x-ambdiag-role); roles: viewer < operator < "
+             "`Authorization: Bearer TOKEN` with at least the route's role (x-ambdiag-role); roles: viewer < "
+             "operator < "
              "engineer < admin. Times are ISO 8601 UTC."}}},
           {"security", json::array({{{"bearer", json::array()}}})},
           {"paths", paths},

@@ -16,7 +16,8 @@ namespace {
 // Every route is in the table before the first request, so the document is
 // made once, at the first one.
 void openapi(RouteContext& c, ServiceState& s) {
-  std::call_once(s.openapi_once, [&] { s.openapi_doc = dump(openapi_document(s.table, c.opt.anonymous_read)); });
+  std::call_once(s.openapi_once,
+                 [&] { s.openapi_doc = dump(openapi_document(s.table, c.opt.anonymous_read)); });
   c.res.status = 200;
   c.res.set_content(s.openapi_doc, "application/json");
 }
@@ -40,9 +41,11 @@ void events(RouteContext& c, ServiceState& s) {
   if (s.open_streams.fetch_add(1) >= limit) {
     s.open_streams.fetch_sub(1);
     c.res.set_header("Retry-After", "10");
-    return send_error(c.res, 503, "too many event streams open (at most " + std::to_string(limit) + "); retry later");
+    return send_error(c.res, 503,
+                      "too many event streams open (at most " + std::to_string(limit) + "); retry later");
   }
-  std::shared_ptr<EventBus::Subscription> sub = s.events.subscribe(last, static_cast<size_t>(std::max(1, c.opt.event_queue_max)));
+  std::shared_ptr<EventBus::Subscription> sub =
+      s.events.subscribe(last, static_cast<size_t>(std::max(1, c.opt.event_queue_max)));
   const auto heartbeat = std::chrono::milliseconds(std::max(10, c.opt.event_heartbeat_ms));
   auto first = std::make_shared<bool>(true);
   c.res.status = 200;
@@ -75,27 +78,43 @@ void events(RouteContext& c, ServiceState& s) {
 
 void add_service_routes(RouteTable& t, ServiceState& s) {
   using storage::Role;
-  t.add({"GET", "/api/v1/openapi.json", Role::viewer, "this document: OpenAPI 3.1 of every route the server answers",
+  t.add({"GET", "/api/v1/openapi.json", Role::viewer,
+         "this document: OpenAPI 3.1 of every route the server answers",
          [&s](RouteContext& c, const PathParams&) { openapi(c, s); }})
       .description = "Generated from the server's route table.";
-  auto& m = t.add({"GET", "/metrics", std::nullopt, "the service's own metrics, Prometheus text exposition format 0.0.4",
+  auto& m = t.add({"GET",
+                   "/metrics",
+                   std::nullopt,
+                   "the service's own metrics, Prometheus text exposition format 0.0.4",
                    [&s](RouteContext& c, const PathParams&) {
                      c.res.status = 200;
                      c.res.set_content(s.metrics.render(), "text/plain; version=0.0.4; charset=utf-8");
                    },
-                   {}, "text/plain"});
-  m.description = "Runs received, rejected DDS samples by reason, jobs by kind and status, job durations, HTTP requests "
-                  "by route pattern, method and status, request durations, event streams (docs/service.md \"Metrics\").";
-  auto& e = t.add({"GET", "/api/v1/events", Role::viewer, "live updates: a server-sent-events stream of new runs, run status changes, finished jobs, models, references and alarm transitions",
-                   [&s](RouteContext& c, const PathParams&) { events(c, s); },
-                   {{"access_token", "the token, for clients that cannot set the Authorization header (a browser's EventSource)"}},
-                   "text/event-stream"});
+                   {},
+                   "text/plain"});
+  m.description =
+      "Runs received, rejected DDS samples by reason, jobs by kind and status, job durations, HTTP requests "
+      "by route pattern, method and status, request durations, event streams (docs/service.md \"Metrics\").";
+  auto& e =
+      t.add({"GET",
+             "/api/v1/events",
+             Role::viewer,
+             "live updates: a server-sent-events stream of new runs, run status changes, finished jobs, "
+             "models, references and alarm transitions",
+             [&s](RouteContext& c, const PathParams&) { events(c, s); },
+             {{"access_token",
+               "the token, for clients that cannot set the Authorization header (a browser's EventSource)"}},
+             "text/event-stream"});
   e.token_in_query = true;
   e.description =
-      "Each event: `id` (increasing), `event` (its type: run.new, run.status, job.done, job.failed, model.new, "
-      "reference.new, reload, ...) and `data` (one JSON object). A client reconnecting with the Last-Event-ID header "
-      "gets the events it missed while they are still held (the last 4096), otherwise first a `reload` event. "
-      "Comments (`: heartbeat`) keep idle streams open. At most max_event_streams streams at once (503 beyond); a "
+      "Each event: `id` (increasing), `event` (its type: run.new, run.status, job.done, job.failed, "
+      "model.new, "
+      "reference.new, reload, ...) and `data` (one JSON object). A client reconnecting with the "
+      "Last-Event-ID header "
+      "gets the events it missed while they are still held (the last 4096), otherwise first a `reload` "
+      "event. "
+      "Comments (`: heartbeat`) keep idle streams open. At most max_event_streams streams at once (503 "
+      "beyond); a "
       "client too slow to take its events is disconnected.";
 }
 

@@ -109,19 +109,22 @@ class MetricsRegistry {
   MetricsRegistry& operator=(const MetricsRegistry&) = delete;
 
   // Owned families. A counter's name ends in _total (promtool's rule).
-  MetricFamily<Counter>& counter(const std::string& name, const std::string& help, std::vector<std::string> labels = {});
-  MetricFamily<Gauge>& gauge(const std::string& name, const std::string& help, std::vector<std::string> labels = {});
-  MetricFamily<Histogram>& histogram(const std::string& name, const std::string& help, std::vector<std::string> labels,
-                                     std::vector<double> bounds);
+  MetricFamily<Counter>& counter(const std::string& name, const std::string& help,
+                                 std::vector<std::string> labels = {});
+  MetricFamily<Gauge>& gauge(const std::string& name, const std::string& help,
+                             std::vector<std::string> labels = {});
+  MetricFamily<Histogram>& histogram(const std::string& name, const std::string& help,
+                                     std::vector<std::string> labels, std::vector<double> bounds);
   // A family of counters or gauges whose samples `collect` produces at each
   // scrape; called from a REST worker thread, so it must be thread-safe. If
   // it throws, the family shows no samples that time and
   // ambdiag_metrics_collect_errors_total counts it.
-  void collected(const std::string& name, const std::string& help, MetricType type, std::vector<std::string> labels,
-                 std::function<std::vector<MetricSample>()> collect);
+  void collected(const std::string& name, const std::string& help, MetricType type,
+                 std::vector<std::string> labels, std::function<std::vector<MetricSample>()> collect);
 
   // The same for a family of one value without labels.
-  void collected_value(const std::string& name, const std::string& help, MetricType type, std::function<double()> value);
+  void collected_value(const std::string& name, const std::string& help, MetricType type,
+                       std::function<double()> value);
 
   // Every family, text format 0.0.4 (Content-Type text/plain; version=0.0.4).
   std::string render() const;
@@ -130,8 +133,8 @@ class MetricsRegistry {
   struct Family;
   Family& add(std::unique_ptr<Family> f);
   template <class M>
-  MetricFamily<M>& owned(const std::string& name, const std::string& help, MetricType type, std::vector<std::string> labels,
-                         std::function<std::unique_ptr<M>()> make);
+  MetricFamily<M>& owned(const std::string& name, const std::string& help, MetricType type,
+                         std::vector<std::string> labels, std::function<std::unique_ptr<M>()> make);
   mutable std::mutex mu_;
   std::vector<std::unique_ptr<Family>> families_;
   Counter* collect_errors_ = nullptr;
