@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <stdexcept>
 #include <thread>
 
 namespace ambdiag::server {
@@ -28,6 +29,8 @@ TEST(EventBus, SubscribersGetEventsInOrderWithIncreasingIds) {
   EXPECT_EQ(sse_frame(got[0]),
             "id: " + std::to_string(a) + "\nevent: run.new\ndata: {\"run_id\":\"r1\"}\n\n");
   EXPECT_TRUE(sub->wait(20ms).empty());  // nothing more: the wait times out
+  EXPECT_THROW(bus.publish("x\nid: 1", {}), std::logic_error);  // would forge a field line
+  EXPECT_EQ(bus.last_id(), b);
 }
 
 TEST(EventBus, AReconnectingClientGetsWhatItMissedOrIsToldToReload) {

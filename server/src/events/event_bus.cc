@@ -1,6 +1,7 @@
 #include "ambdiag/server/events.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace ambdiag::server {
 
@@ -21,6 +22,9 @@ EventBus::EventBus(std::size_t ring_capacity)
 EventBus::~EventBus() { close(); }
 
 std::uint64_t EventBus::publish(const std::string& type, const nlohmann::json& data) {
+  // The type is a field line of the stream: a newline would forge fields.
+  if (type.empty() || type.find_first_of("\r\n") != std::string::npos)
+    throw std::logic_error("event type must be one non-empty line");
   Event e{0, type, data.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)};
   std::lock_guard l(mu_);
   e.id = next_id_++;

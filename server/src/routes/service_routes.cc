@@ -107,15 +107,11 @@ void add_service_routes(RouteTable& t, ServiceState& s) {
              "text/event-stream"});
   e.token_in_query = true;
   e.description =
-      "Each event: `id` (increasing), `event` (its type: run.new, run.status, job.done, job.failed, "
-      "model.new, "
-      "reference.new, reload, ...) and `data` (one JSON object). A client reconnecting with the "
-      "Last-Event-ID header "
-      "gets the events it missed while they are still held (the last 4096), otherwise first a `reload` "
-      "event. "
-      "Comments (`: heartbeat`) keep idle streams open. At most max_event_streams streams at once (503 "
-      "beyond); a "
-      "client too slow to take its events is disconnected.";
+      "Each event: `id` (increasing), `event` (its type: run.new, run.status, job.done, job.failed, model.new, "
+      "reference.new, reload, ...) and `data` (one JSON object). A client reconnecting with the Last-Event-ID "
+      "header gets the events it missed while they are still held (the last 4096), otherwise first a `reload` "
+      "event. Comments (`: heartbeat`) keep idle streams open. At most max_event_streams streams at once "
+      "(503 beyond); a client too slow to take its events is disconnected.";
 }
 
 }  // namespace ambdiag::server::detail

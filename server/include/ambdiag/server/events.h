@@ -45,7 +45,8 @@ class EventBus {
   EventBus(const EventBus&) = delete;
   EventBus& operator=(const EventBus&) = delete;
 
-  // Thread-safe; returns the event's id. `data` should be an object.
+  // Thread-safe; returns the event's id. `data` should be an object; a
+  // type with a line break is a programming error (std::logic_error).
   std::uint64_t publish(const std::string& type, const nlohmann::json& data);
 
   class Subscription {
