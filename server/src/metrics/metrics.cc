@@ -58,34 +58,27 @@ void sample_line(std::string& out, const std::string& name, const std::vector<st
 
 }  // namespace
 
-std::string escape_label_value(const std::string& v) {
+namespace {
+
+// Backslash and newline always; the double quote only inside a label value.
+std::string escape(const std::string& v, bool quote) {
   std::string out;
   out.reserve(v.size());
   for (const char c : v) {
-    if (c == '\\')
-      out += "\\\\";
-    else if (c == '"')
-      out += "\\\"";
-    else if (c == '\n')
+    if (c == '\n') {
       out += "\\n";
-    else
-      out += c;
+      continue;
+    }
+    if (c == '\\' || (quote && c == '"')) out += '\\';
+    out += c;
   }
   return out;
 }
 
-std::string escape_help(const std::string& v) {
-  std::string out;
-  for (const char c : v) {
-    if (c == '\\')
-      out += "\\\\";
-    else if (c == '\n')
-      out += "\\n";
-    else
-      out += c;
-  }
-  return out;
-}
+}  // namespace
+
+std::string escape_label_value(const std::string& v) { return escape(v, true); }
+std::string escape_help(const std::string& v) { return escape(v, false); }
 
 std::string format_metric_value(double v) {
   if (std::isnan(v)) return "NaN";

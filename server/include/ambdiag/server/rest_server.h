@@ -72,8 +72,10 @@ struct RestOptions {
   int event_heartbeat_ms = 15000;
   int event_queue_max = 1024;
   // Requests per second per token (per client address without one), with
-  // bursts of rate_limit_burst; 0: no limit. Open routes are not limited.
-  double rate_limit_per_s = 50;
+  // bursts of rate_limit_burst; 0: no limit (the default here: `ambdiag
+  // serve` sets 50 in bursts of 100 unless --rate-limit says otherwise).
+  // Open routes are not limited.
+  double rate_limit_per_s = 0;
   double rate_limit_burst = 100;
 };
 
