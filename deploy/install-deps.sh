@@ -16,7 +16,25 @@ packages=(
   openssl libssl-dev
   # The security tests' loopback capture (issue 21); they skip without it.
   tcpdump
+  prometheus  # promtool: the metrics test checks GET /metrics with it
 )
+
+# npm packages the tests use, each folder pinned by its package-lock.json
+# (npm ci installs exactly that); skipped when already installed from it.
+npm_dirs=(tests/tools/openapi)  # an independent OpenAPI validator
+install_npm() {
+  local root
+  root="$(cd "$(dirname "$0")/.." && pwd)"
+  if ! command -v npm >/dev/null; then
+    echo "install-deps: npm missing: the tests that need ${npm_dirs[*]} are skipped" >&2
+    return 0
+  fi
+  for d in "${npm_dirs[@]}"; do
+    if [ "$root/$d/node_modules/.package-lock.json" -nt "$root/$d/package-lock.json" ]; then continue; fi
+    echo "install-deps: npm ci in $d" >&2
+    npm ci --prefix "$root/$d" --no-audit --no-fund >&2
+  done
+}
 
 missing=()
 for p in "${packages[@]}"; do
@@ -25,6 +43,7 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present" >&2
+  install_npm
   exit 0
 fi
 
@@ -34,3 +53,4 @@ echo "install-deps: installing ${missing[*]}" >&2
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -q
 $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+install_npm

@@ -22,8 +22,10 @@ class BenchServer:
         out = subprocess.check_output([self.cli, "token", "add", "--db", db, "--role", "engineer", "--name", "b", "--json"])
         self.token = json.loads(out)["token"]
         log = open(os.path.join(self.tmp, "server.log"), "w+")
+        # Capacity is measured, not the per-token limit, unless asked for.
+        limit = [] if "--rate-limit" in extra else ["--rate-limit", "0"]
         self.proc = subprocess.Popen([self.cli, "serve", "--db", db, "--http-port", "0", "--domain", domain,
-                                      "--partition", partition, *extra], stderr=log, env=self.env)
+                                      "--partition", partition, *limit, *extra], stderr=log, env=self.env)
         self.port = None
         for _ in range(100):
             log.seek(0)

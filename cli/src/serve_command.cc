@@ -2,6 +2,7 @@
 // ingest (server/ingest.h) into the historian in FILE, REST read side on
 // port N (0: any free port, printed on stderr); stops cleanly on SIGINT/SIGTERM (ingest drains, the database is
 // closed after its last commit).
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -12,7 +13,9 @@
 
 #include "ambdiag/core/process_lock.h"
 #include "ambdiag/server/analysis_service.h"
+#include "ambdiag/server/events.h"
 #include "ambdiag/server/ingest.h"
+#include "ambdiag/server/metrics.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
@@ -37,7 +40,8 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
-                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key"},
+                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
+                   "--rate-limit-burst"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -61,6 +65,10 @@ int run_serve(const std::vector<std::string>& argv) {
   aopt.alpha = args.number("--alpha").value_or(aopt.alpha);
   if (!(aopt.alpha > 0 && aopt.alpha < 0.5)) throw UsageError("--alpha: must be in (0, 0.5)");
   aopt.verbose = opt.verbose;
+  const double rate = args.number("--rate-limit").value_or(50);
+  if (!(rate >= 0 && rate <= 1e6)) throw UsageError("--rate-limit: must be requests per second in 0..1000000 (0: no limit)");
+  const double burst = args.number("--rate-limit-burst").value_or(std::max(1.0, 2 * rate));
+  if (!(burst >= 1 && burst <= 1e7)) throw UsageError("--rate-limit-burst: must be in 1..10000000");
 
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
@@ -71,12 +79,20 @@ int run_serve(const std::vector<std::string>& argv) {
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs.
   if (!args.flag("--bench-inline-checkpoints")) historian.checkpoint_in_background();
+  // What ingest, the analysis and REST publish into (GET /metrics, GET
+  // /api/v1/events); declared first, so they outlive all three.
+  server::MetricsRegistry metrics;
+  server::EventBus events;
+  opt.events = &events;
+  aopt.events = &events;
+  aopt.metrics = &metrics;
   std::optional<server::AnalysisService> analysis;
   if (aopt.workers > 0) {
     analysis.emplace(aopt);
     opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
   }
   server::Ingest ingest(historian, opt);
+  server::register_ingest_metrics(metrics, ingest);
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
@@ -87,6 +103,10 @@ int run_serve(const std::vector<std::string>& argv) {
   if (rest_opt.tls_cert_path.empty() != rest_opt.tls_key_path.empty())
     throw UsageError("--tls-cert and --tls-key go together (HTTPS needs both)");
   rest_opt.proposed_reference_runs = aopt.proposed_reference_runs;
+  rest_opt.metrics = &metrics;
+  rest_opt.events = &events;
+  rest_opt.rate_limit_per_s = rate;
+  rest_opt.rate_limit_burst = burst;
   rest_opt.health_extra = [&ingest, &historian, &analysis] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"ingest", ingest.health()},
@@ -145,6 +165,7 @@ std::vector<Command> serve_commands() {
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
+           "                     [--rate-limit N] [--rate-limit-burst B]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -156,6 +177,10 @@ std::vector<Command> serve_commands() {
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
            "requests without one read as viewer. One server per historian file (FILE.lock).\n"
+           "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
+           "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
+           "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
+           "  live updates (server-sent events); GET /api/v1/openapi.json: every route.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"

@@ -33,6 +33,11 @@ int64_t IngestCounters::rejected_total() const {
   return n;
 }
 
+std::map<std::string, int64_t> IngestCounters::rejected_by_reason() const {
+  std::lock_guard lock(mu_);
+  return rejected_;
+}
+
 nlohmann::json IngestCounters::to_json() const {
   const int64_t first = first_block_ns.load(), last = last_commit_ns.load();
   nlohmann::json j = {{"headers", headers.load()},

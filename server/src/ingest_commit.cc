@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/server/events.h"
 
 namespace ambdiag::server::detail {
 
@@ -60,8 +61,14 @@ Committer::Chain& Committer::chain(Staged& st, const std::string& run_id) {
 
 void Committer::apply(BeginRun& w, Staged& st) {
   try {
+    // A header is re-sent after an agent's restart: only the first is news.
+    const bool fresh = opt_.events && !h_.find_run(w.header.run_id);
     h_.begin_run(w.header);
     ++st.headers;
+    if (fresh)
+      st.events.push_back({"run.new",
+                           {{"run_id", w.header.run_id}, {"pump_id", w.header.pump_id}, {"kind", w.header.kind},
+                            {"started_at", w.header.started_at}, {"status", "receiving"}}});
   } catch (const InputError& e) {
     reject("header", w.header.run_id, e.what());
   }
@@ -108,20 +115,30 @@ void Committer::apply(Blocks& w, Staged& st) {
   st.stream_progress = true;
 }
 
-void Committer::verdict(Staged& st, const std::string& run_id, std::optional<storage::RunStatus> before,
-                        storage::RunStatus after, const std::string& reason) {
+void Committer::verdict(Staged& st, const std::string& run_id, const std::string& pump_id,
+                        std::optional<storage::RunStatus> before, storage::RunStatus after, const std::string& reason) {
   using storage::RunStatus;
   st.ended[run_id] = true;
   st.stream_progress = true;
+  const auto changed = [&](const char* status, const std::string& why) {
+    nlohmann::json d = {{"run_id", run_id}, {"pump_id", pump_id}, {"status", status}};
+    if (!why.empty()) d["reason"] = why;
+    st.events.push_back({"run.status", std::move(d)});
+  };
   if (after == RunStatus::complete) {
     if (before != RunStatus::complete) {
       ++st.complete;
       st.log.push_back("run " + run_id + ": complete");
       st.completed.push_back(run_id);
+      changed("complete", "");
     }
     st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_COMPLETE, "complete: count and checksum verified"});
   } else {
-    if (before == RunStatus::receiving) ++st.incomplete, st.log.push_back("run " + run_id + ": incomplete: " + reason);
+    if (before == RunStatus::receiving) {
+      ++st.incomplete;
+      st.log.push_back("run " + run_id + ": incomplete: " + reason);
+      changed("incomplete", reason);
+    }
     st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_INCOMPLETE, "incomplete: " + reason});
   }
 }
@@ -132,14 +149,14 @@ void Committer::apply(EndRun& w, Staged& st) {
     const auto before = info ? std::optional(info->status) : std::nullopt;
     if (w.aborted) {
       const auto after = h_.mark_incomplete(w.run_id, "agent aborted: " + w.reason);
-      verdict(st, w.run_id, before, after, "aborted: " + w.reason);
+      verdict(st, w.run_id, info ? info->pump_id : "", before, after, "aborted: " + w.reason);
       return;
     }
     const Chain& c = chain(st, w.run_id);
     const storage::EndResult r =
         h_.end_run(w.run_id, w.total_frames, w.checksum, storage::HeldDigest{c.next_seq, c.hash, c.kind}, w.kind);
     if (r.used_digest) ++st.from_digest;
-    verdict(st, w.run_id, before, r.status, r.reason);
+    verdict(st, w.run_id, info ? info->pump_id : "", before, r.status, r.reason);
   } catch (const InputError& e) {
     reject("run_end", w.run_id, e.what());
     st.verdicts.push_back({w.run_id, -1, -1, ambdiag_stream_ACK_REJECTED, e.what()});
@@ -151,7 +168,7 @@ void Committer::apply(MarkIncomplete& w, Staged& st) {
     const auto info = h_.find_run(w.run_id);
     // Completed meanwhile (its end was queued before the timeout): nothing to do.
     if (!info || info->status == storage::RunStatus::complete) return;
-    verdict(st, w.run_id, info->status, h_.mark_incomplete(w.run_id, w.reason), w.reason);
+    verdict(st, w.run_id, info->pump_id, info->status, h_.mark_incomplete(w.run_id, w.reason), w.reason);
   } catch (const InputError& e) {
     log_line(opt_.verbose, "run " + w.run_id + ": " + e.what());
   }
@@ -209,6 +226,8 @@ void Committer::commit(std::vector<Work>& batch) {
   // After the commit: whoever analyses the run reads it complete.
   if (opt_.on_run_complete)
     for (const auto& id : st.completed) opt_.on_run_complete(id);
+  if (opt_.events)
+    for (const auto& [type, data] : st.events) opt_.events->publish(type, data);
 }
 
 }  // namespace ambdiag::server::detail

@@ -4,8 +4,11 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <unordered_map>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/ingest.h"
@@ -51,6 +54,7 @@ class Committer {
     std::vector<Ack> verdicts;
     std::vector<std::string> log;
     std::vector<std::string> completed;  // runs that became complete in this batch
+    std::vector<std::pair<std::string, nlohmann::json>> events;  // published after the commit
     int64_t blocks_stored = 0, blocks_duplicate = 0, bytes_stored = 0, headers = 0, complete = 0, incomplete = 0,
             monitoring_stored = 0, monitoring_duplicate = 0, from_digest = 0;
     bool stream_progress = false;  // blocks stored or a run ended
@@ -62,7 +66,7 @@ class Committer {
   void apply(MarkIncomplete& w, Staged& st);
   void apply(Monitoring& w, Staged& st);
   Chain& chain(Staged& st, const std::string& run_id);
-  void verdict(Staged& st, const std::string& run_id, std::optional<storage::RunStatus> before,
+  void verdict(Staged& st, const std::string& run_id, const std::string& pump_id, std::optional<storage::RunStatus> before,
                storage::RunStatus after, const std::string& reason);
   void reject(const std::string& reason, const std::string& run_id, const std::string& what);
   void send(const Ack& a);

@@ -3,24 +3,69 @@
 #include <httplib.h>
 
 #include <chrono>
+#include <cmath>
 #include <optional>
 #include <thread>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/analysis_service.h"
+#include "ambdiag/server/events.h"
+#include "ambdiag/server/metrics.h"
+#include "rate_limit.h"
 #include "reader_pool.h"
 #include "rest_tls.h"
 #include "routes/route_context.h"
+#include "routes/service_routes.h"
 #include "url.h"
 
 namespace ambdiag::server {
 
 using detail::send_error;
 
+namespace {
+
+// An exception out of a handler as its status and {"error"}.
+void send_exception(httplib::Response& res, std::exception_ptr ep) {
+  try {
+    std::rethrow_exception(ep);
+  } catch (const InputError& e) {
+    send_error(res, 400, e.what());
+  } catch (const NotFoundError& e) {
+    send_error(res, 404, e.what());
+  } catch (const ConflictError& e) {
+    send_error(res, 409, e.what());
+  } catch (const std::exception& e) {
+    send_error(res, 500, std::string("internal error: ") + e.what());
+  } catch (...) {
+    send_error(res, 500, "internal error");
+  }
+}
+
+// A bounded label: one of the methods httplib routes, else "other".
+std::string method_label(const std::string& m) {
+  for (const char* known : {"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
+    if (m == known) return m;
+  return "other";
+}
+
+constexpr const char* kUnmatched = "unmatched";  // the route label of a path no route has
+
+}  // namespace
+
 struct RestServer::Impl {
   RestOptions opt;
   detail::ReaderPool pool;
   detail::RouteTable routes;
+  std::unique_ptr<MetricsRegistry> own_metrics;  // when opt.metrics is null
+  std::unique_ptr<EventBus> own_events;          // when opt.events is null
+  MetricsRegistry& metrics;
+  EventBus& events;
+  detail::ServiceState service;
+  detail::RateLimiter limiter;
+  MetricFamily<Counter>& requests;
+  MetricFamily<Histogram>& durations;
+  Counter& rate_limited;
+  const std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
   // HTTPS only with a certificate and key (TLS 1.2+), plain HTTP without.
   std::unique_ptr<httplib::Server> server;
   httplib::Server& http;
@@ -30,14 +75,70 @@ struct RestServer::Impl {
   explicit Impl(RestOptions o)
       : opt(std::move(o)),
         pool(opt.db_path, std::max(1, opt.worker_threads)),
+        own_metrics(opt.metrics ? nullptr : std::make_unique<MetricsRegistry>()),
+        own_events(opt.events ? nullptr : std::make_unique<EventBus>()),
+        metrics(opt.metrics ? *opt.metrics : *own_metrics),
+        events(opt.events ? *opt.events : *own_events),
+        service{routes, metrics, events},
+        limiter(opt.rate_limit_per_s, opt.rate_limit_burst),
+        requests(metrics.counter("ambdiag_http_requests_total",
+                                 "HTTP requests answered, by route pattern (\"unmatched\": no route has the path), method and status.",
+                                 {"route", "method", "status"})),
+        durations(metrics.histogram("ambdiag_http_request_duration_seconds",
+                                    "Time in the request's handler (a streamed body's transfer not included), by route pattern and method.",
+                                    {"route", "method"}, default_seconds_buckets())),
+        rate_limited(metrics.counter("ambdiag_http_rate_limited_total", "Requests refused with 429 by the per-token rate limit.").with({})),
         server(opt.tls_cert_path.empty() ? std::make_unique<httplib::Server>()
                                          : detail::make_tls_server(opt.tls_cert_path, opt.tls_key_path)),
         http(*server) {
-    detail::add_read_routes(routes, std::chrono::steady_clock::now());
+    detail::add_read_routes(routes, started);
     detail::add_analysis_routes(routes);
+    detail::add_service_routes(routes, service);
+    register_metrics();
+  }
+
+  // What the server itself knows: the historian's jobs and runs (read at
+  // each scrape through the reader pool), uptime, event streams.
+  void register_metrics() {
+    metrics.gauge("ambdiag_build_info", "The server's version (value 1).", {"version"}).with({"0.1.0"}).set(1);
+    metrics.collected_value("ambdiag_uptime_seconds", "Seconds since the REST server started.", MetricType::gauge,
+                            [this] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); });
+    metrics.collected_value("ambdiag_historian_runs", "Runs held by the historian (every status).", MetricType::gauge,
+                            [this] { return static_cast<double>(pool.acquire()->count_runs()); });
+    metrics.collected("ambdiag_jobs", "Jobs in the historian's queue by kind and status (every server on the database).",
+                      MetricType::gauge, {"kind", "status"}, [this] {
+                        auto h = pool.acquire();
+                        std::vector<MetricSample> out;
+                        for (const auto& [key, n] : h->count_jobs_by_kind_and_status())
+                          out.push_back({{key.first, key.second}, static_cast<double>(n)});
+                        return out;
+                      });
+    metrics.collected_value("ambdiag_event_streams", "Event streams (GET /api/v1/events) open now.", MetricType::gauge,
+                            [this] { return static_cast<double>(service.open_streams.load()); });
+    metrics.collected_value("ambdiag_event_streams_dropped_total", "Event streams closed because their client did not keep up.",
+                            MetricType::counter, [this] { return static_cast<double>(events.dropped_total()); });
+    metrics.collected_value("ambdiag_events_last_id", "The id of the newest event published (ids grow by one per event).",
+                            MetricType::gauge, [this] { return static_cast<double>(events.last_id()); });
+  }
+
+  void count(const std::string& method, const std::string& route, int status, std::chrono::steady_clock::time_point t0) {
+    const std::string m = method_label(method);
+    requests.with({route, m, std::to_string(status)}).inc();
+    durations.with({route, m}).observe(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
 
   void handle(const httplib::Request& req, httplib::Response& res) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::string route = kUnmatched;
+    try {
+      dispatch(req, res, route);
+    } catch (...) {
+      send_exception(res, std::current_exception());
+    }
+    count(req.method, route, res.status == -1 ? 200 : res.status, t0);  // httplib's default: 200
+  }
+
+  void dispatch(const httplib::Request& req, httplib::Response& res, std::string& route_label) {
     const auto segments = detail::split_path(req.target);
     if (!segments) return send_error(res, 400, "bad path or percent-encoding: " + req.target);
     const auto found = routes.find(req.method, *segments);
@@ -47,15 +148,32 @@ struct RestServer::Impl {
       return send_error(res, 405, req.method + " not allowed on " + req.path + " (allowed: " + found.allow + ")");
     }
     const detail::Route& route = *found.route;
+    route_label = route.pattern;
     std::optional<detail::Caller> caller;
     if (route.role) {
-      caller = detail::authorize(pool, req, *route.role, opt.anonymous_read, res);
+      caller = detail::authorize(pool, req, *route.role, opt.anonymous_read, res, route.token_in_query);
       if (!caller) return;  // 401 or 403 sent
+      if (!rate_ok(*caller, req, res)) return;
     }
     if (route.method != "GET" && !opt.analysis)
       return send_error(res, 503, "this server runs without the analysis service: " + req.method + " " + req.path + " is not served");
     detail::RouteContext ctx{pool, opt, caller.value_or(detail::Caller{}), req, res};
     route.handler(ctx, found.params);
+  }
+
+  // The token's bucket, or the client address' for a request without one;
+  // 429 naming the limit when it is empty.
+  bool rate_ok(const detail::Caller& caller, const httplib::Request& req, httplib::Response& res) {
+    if (!limiter.enabled()) return true;
+    const std::string key = caller.from_token ? "token " + caller.name : "address " + req.remote_addr;
+    const double wait_s = limiter.take(key);
+    if (wait_s <= 0) return true;
+    rate_limited.inc();
+    res.set_header("Retry-After", std::to_string(std::max(1, static_cast<int>(std::ceil(wait_s)))));
+    send_error(res, 429, "rate limit of " + (caller.from_token ? "token '" + caller.name + "'" : "address " + req.remote_addr) +
+                             " exceeded: " + format_metric_value(limiter.per_s()) + " requests/s, bursts of " +
+                             format_metric_value(limiter.burst()) + " (ambdiag serve --rate-limit)");
+    return false;
   }
 };
 
@@ -76,24 +194,14 @@ RestServer::RestServer(RestOptions options) : impl_(std::make_unique<Impl>(std::
   http.Patch(".*", handle);
   http.Delete(".*", handle);
   http.Options(".*", handle);
-  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
-    try {
-      std::rethrow_exception(ep);
-    } catch (const InputError& e) {
-      send_error(res, 400, e.what());
-    } catch (const NotFoundError& e) {
-      send_error(res, 404, e.what());
-    } catch (const ConflictError& e) {
-      send_error(res, 409, e.what());
-    } catch (const std::exception& e) {
-      send_error(res, 500, std::string("internal error: ") + e.what());
-    } catch (...) {
-      send_error(res, 500, "internal error");
-    }
-  });
-  // httplib's own refusals (malformed request line, too long URI, ...) as JSON too.
-  http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    if (res.body.empty()) send_error(res, res.status, "HTTP " + std::to_string(res.status));
+  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) { send_exception(res, ep); });
+  // httplib's own refusals (malformed request line, too long URI, body too
+  // large, ...) as JSON too, and counted: handle() never saw them (an
+  // empty body tells them from the errors handle() sent).
+  http.set_error_handler([impl](const httplib::Request& req, httplib::Response& res) {
+    if (!res.body.empty()) return;
+    send_error(res, res.status, "HTTP " + std::to_string(res.status));
+    impl->count(req.method, kUnmatched, res.status, std::chrono::steady_clock::now());
   });
 }
 
@@ -111,6 +219,7 @@ int RestServer::start() {
 
 void RestServer::stop() {
   if (!impl_ || !impl_->thread.joinable()) return;
+  impl_->events.close();  // ends the open event streams, which would hold their workers
   impl_->http.stop();
   impl_->thread.join();
 }

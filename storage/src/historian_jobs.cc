@@ -346,6 +346,14 @@ std::int64_t Historian::count_jobs(JobStatus status) {
   return n;
 }
 
+std::map<std::pair<std::string, std::string>, std::int64_t> Historian::count_jobs_by_kind_and_status() {
+  auto& s = impl_->stmt("SELECT kind, status, count(*) FROM jobs GROUP BY kind, status");
+  std::map<std::pair<std::string, std::string>, std::int64_t> out;
+  while (s.step()) out[{s.col_text(0), s.col_text(1)}] = s.col_int(2);
+  s.reset();
+  return out;
+}
+
 std::optional<JobArtifact> Historian::find_artifact(std::int64_t job_id, const std::string& name) {
   auto& s = impl_->stmt("SELECT content_type, data FROM job_artifacts WHERE job_id = ? AND name = ?");
   s.bind(1, job_id).bind(2, name);

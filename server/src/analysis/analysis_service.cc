@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/server/events.h"
 #include "ambdiag/storage/historian.h"
 #include "job_runner.h"
 #include "run_analysis.h"
@@ -38,7 +39,13 @@ struct AnalysisService::Impl {
   std::thread scheduler;
   std::vector<std::thread> workers;
 
-  explicit Impl(AnalysisOptions o) : opt(std::move(o)) {}
+  explicit Impl(AnalysisOptions o) : opt(std::move(o)) {
+    if (opt.metrics) counters.attach(*opt.metrics);
+  }
+
+  void publish(const std::string& type, const nlohmann::json& data) {
+    if (opt.events) opt.events->publish(type, data);
+  }
 
   // The pump's current versions: (model, reference; 0 for none). nullopt
   // without a model: nothing of the pump is analysed.
@@ -154,6 +161,7 @@ int AnalysisService::put_model(const std::string& pump_id, const std::string& pl
   const int version = impl_->ctl->put_model(pump_id, plant_json, by);
   impl_->schedule_pump_locked(pump_id);
   impl_->work.notify_all();
+  impl_->publish("model.new", {{"pump_id", pump_id}, {"model_version", version}, {"by", by}});
   return version;
 }
 
@@ -172,6 +180,7 @@ AnalysisService::ReferenceReply AnalysisService::put_reference(const std::string
   const auto job = h.enqueue_job(JobKey{"reference", pump_id, "", model->version, version}).first;
   impl_->schedule_pump_locked(pump_id);
   impl_->work.notify_all();
+  impl_->publish("reference.new", {{"pump_id", pump_id}, {"reference_version", version}, {"job_id", job}, {"by", by}});
   return {job, version};
 }
 
@@ -204,6 +213,7 @@ int AnalysisService::adopt_explained_model(std::int64_t job_id, const std::strin
                                   "adopted from explain job " + std::to_string(job_id) + " of run " + job->key.run_id);
   impl_->schedule_pump_locked(job->key.pump_id);
   impl_->work.notify_all();
+  impl_->publish("model.new", {{"pump_id", job->key.pump_id}, {"model_version", version}, {"by", by}, {"adopted_from_job", job_id}});
   return version;
 }
 

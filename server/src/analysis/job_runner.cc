@@ -10,6 +10,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/run_recording.h"
+#include "ambdiag/server/events.h"
 #include "run_analysis.h"
 
 namespace ambdiag::server::detail {
@@ -117,7 +118,16 @@ PlantModel job_plant(Historian& h, const storage::Job& job) {
 
 }  // namespace
 
+void JobCounters::attach(MetricsRegistry& registry) {
+  durations_ = &registry.histogram("ambdiag_job_duration_seconds",
+                                   "Wall time of a job attempt from claim to stored result, by kind and outcome (done or failed).",
+                                   {"kind", "outcome"}, default_seconds_buckets());
+  cpu_ = &registry.counter("ambdiag_job_cpu_seconds_total", "CPU seconds of the worker threads in jobs, by kind.", {"kind"});
+}
+
 void JobCounters::finished(const std::string& kind, bool ok, double cpu_s, double wall_s) {
+  if (durations_) durations_->with({kind, ok ? "done" : "failed"}).observe(wall_s);
+  if (cpu_) cpu_->with({kind}).inc(cpu_s);
   std::lock_guard l(mu_);
   auto& k = kinds_[kind];
   (ok ? k.done : k.failed) += 1;
@@ -192,6 +202,7 @@ void JobRunner::execute(const storage::Job& job) {
   const std::string what = job.key.kind + " job " + std::to_string(job.job_id) +
                            (job.key.run_id.empty() ? " of pump " + job.key.pump_id : " of run " + job.key.run_id);
   bool ok = false;
+  std::optional<std::string> failure;  // recorded as the job's error
   std::string summary;
   try {
     JobOutput out;
@@ -236,7 +247,7 @@ void JobRunner::execute(const storage::Job& job) {
     summary = std::string("failed: ") + e.what();
     try {
       const NormalPriorityScope normal;
-      with_retries([&] { return h_.fail_job(job.job_id, job.attempts, e.what()); });
+      if (with_retries([&] { return h_.fail_job(job.job_id, job.attempts, e.what()); })) failure = e.what();
     } catch (const std::exception& e2) {
       std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
     }
@@ -244,6 +255,13 @@ void JobRunner::execute(const storage::Job& job) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const double cpu = thread_cpu_s() - cpu0;
   counters_.finished(job.key.kind, ok, cpu, wall);
+  if (opt_.events && (ok || failure)) {
+    json d = {{"job_id", job.job_id}, {"kind", job.key.kind}, {"pump_id", job.key.pump_id}, {"status", ok ? "done" : "failed"},
+              {"model_version", job.key.model_version}, {"reference_version", job.key.reference_version}, {"summary", summary}};
+    if (!job.key.run_id.empty()) d["run_id"] = job.key.run_id;
+    if (failure) d["error"] = *failure;
+    opt_.events->publish(ok ? "job.done" : "job.failed", d);
+  }
   if (opt_.verbose)
     std::fprintf(stderr, "ambdiag serve: %s (attempt %d): %s, %.2f s, %.2f CPU-s\n", what.c_str(), job.attempts,
                  summary.c_str(), wall, cpu);

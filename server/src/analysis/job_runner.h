@@ -15,6 +15,7 @@
 
 #include "ambdiag/algorithms/diagnosis/operating_reference.h"
 #include "ambdiag/server/analysis_service.h"
+#include "ambdiag/server/metrics.h"
 #include "ambdiag/storage/historian.h"
 
 namespace ambdiag::server::detail {
@@ -48,10 +49,15 @@ class WorkSignal {
 
 class JobCounters {
  public:
+  // Also into `registry` from now on: a duration histogram by kind and
+  // outcome, CPU seconds by kind.
+  void attach(MetricsRegistry& registry);
   void finished(const std::string& kind, bool ok, double cpu_s, double wall_s);
   nlohmann::json to_json() const;
 
  private:
+  MetricFamily<Histogram>* durations_ = nullptr;
+  MetricFamily<Counter>* cpu_ = nullptr;
   struct Kind {
     std::int64_t done = 0, failed = 0;
     double cpu_s = 0, wall_s = 0;

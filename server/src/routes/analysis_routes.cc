@@ -178,17 +178,21 @@ void add_analysis_routes(RouteTable& t) {
   t.add({"GET", "/api/v1/pumps/{pump_id}", Role::viewer, "a pump: model and reference versions, health, active alarms, last run and analysis", pump(get_pump)});
   t.add({"GET", "/api/v1/pumps/{pump_id}/model", Role::viewer, "the plant JSON of a model version (default: the current one)", pump(get_model),
          {{"version", "model version (default: the current one)"}}});
-  t.add({"PUT", "/api/v1/pumps/{pump_id}/model", Role::engineer, "a new model version (body: plant JSON); registers the pump", pump(put_model)});
+  t.add({"PUT", "/api/v1/pumps/{pump_id}/model", Role::engineer, "a new model version (body: plant JSON); registers the pump", pump(put_model)})
+      .body = "the plant JSON (plant-model.md); a bad plant is 400 naming the field";
   t.add({"GET", "/api/v1/pumps/{pump_id}/models", Role::viewer, "every model version of a pump", pump(get_models)});
   t.add({"GET", "/api/v1/pumps/{pump_id}/reference", Role::viewer, "the pump's reference (or the proposed one)", pump(get_reference)});
-  t.add({"PUT", "/api/v1/pumps/{pump_id}/reference", Role::engineer, "a new reference version from runs (body {\"runs\": [run_id, ...]})",
-         pump(put_reference)});
+  auto& reference = t.add({"PUT", "/api/v1/pumps/{pump_id}/reference", Role::engineer,
+                           "a new reference version from runs (body {\"runs\": [run_id, ...]})", pump(put_reference)});
+  reference.body = "{\"runs\": [run_id, ...]}: at least 2 complete identification runs of the pump";
+  reference.status = 202;
   t.add({"GET", "/api/v1/runs/{run_id*}/analysis", Role::viewer, "the run's analysis: status, modes, detection, diagnosis", run(get_analysis)});
   for (const char* file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg"})
     t.add({"GET", std::string("/api/v1/runs/{run_id*}/") + file, Role::viewer, std::string("the analysis' ") + file,
            [file = std::string(file)](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
            file == std::string("frf.csv") ? "text/csv" : "image/svg+xml"});
-  t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)});
+  t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)})
+      .status = 202;
   t.add({"GET", "/api/v1/jobs", Role::viewer, "jobs, newest first", [](RouteContext& c, const PathParams&) { get_jobs(c); },
          {{"pump_id", "only this pump's"}, {"run_id", "only this run's"}, {"kind", "analysis, reference or explain"},
           {"status", "queued, running, done, failed or cancelled"}, {"limit", "at most this many (1..10000)"}}});

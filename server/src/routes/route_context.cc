@@ -29,8 +29,9 @@ void send_error(httplib::Response& res, int status, const std::string& message) 
 }
 
 std::optional<Caller> authorize(ReaderPool& pool, const httplib::Request& req, storage::Role needed, bool anonymous_read,
-                                httplib::Response& res) {
-  const std::string header = req.get_header_value("Authorization");
+                                httplib::Response& res, bool token_in_query) {
+  std::string header = req.get_header_value("Authorization");
+  if (header.empty() && token_in_query && req.has_param("access_token")) header = "Bearer " + req.get_param_value("access_token");
   std::optional<Caller> caller;
   if (header.empty()) {
     if (anonymous_read) caller = Caller{};
@@ -42,7 +43,7 @@ std::optional<Caller> authorize(ReaderPool& pool, const httplib::Request& req, s
       return std::nullopt;
     }
     auto h = pool.acquire();
-    if (const auto t = h->find_token(header.substr(kBearer.size()))) caller = Caller{t->name, t->role};
+    if (const auto t = h->find_token(header.substr(kBearer.size()))) caller = Caller{t->name, t->role, true};
     if (!caller) {
       res.set_header("WWW-Authenticate", "Bearer error=\"invalid_token\"");
       send_error(res, 401, "unknown or revoked token");

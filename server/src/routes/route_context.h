@@ -29,14 +29,16 @@ void send_error(httplib::Response& res, int status, const std::string& message);
 struct Caller {
   std::string name = "anonymous";
   storage::Role role = storage::Role::viewer;
+  bool from_token = false;  // false: anonymous (rate-limited by address)
 };
 
 // The caller when the request's token (Authorization: Bearer) has at least
 // `needed`; otherwise sends 401 (no or unknown token) or 403 (role too low)
 // and returns nullopt. The token is looked up on every request, so `ambdiag
-// token revoke` takes effect on the next one.
+// token revoke` takes effect on the next one. `token_in_query`: without the
+// header, ?access_token= is taken as the token.
 std::optional<Caller> authorize(ReaderPool& pool, const httplib::Request& req, storage::Role needed, bool anonymous_read,
-                                httplib::Response& res);
+                                httplib::Response& res, bool token_in_query = false);
 
 struct RouteContext {
   ReaderPool& pool;
@@ -56,5 +58,6 @@ std::int64_t positive_integer(const std::string& text, const std::string& what);
 void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point started);
 // models, references, analyses and their files, explain, jobs (analysis_routes.cc).
 void add_analysis_routes(RouteTable& t);
+// openapi.json, metrics, events: service_routes.h (they need the server's state).
 
 }  // namespace ambdiag::server::detail

@@ -71,7 +71,7 @@ int literals(const std::vector<PatternSegment>& pattern) {
 
 }  // namespace
 
-void RouteTable::add(Route r) {
+Route& RouteTable::add(Route r) {
   if (r.method != "GET" && r.method != "POST" && r.method != "PUT")
     throw std::logic_error("route method must be GET, POST or PUT: " + r.method);
   auto pattern = parse(r.pattern);
@@ -80,6 +80,7 @@ void RouteTable::add(Route r) {
   if (!r.handler) throw std::logic_error("route without handler: " + r.pattern);
   routes_.push_back(std::move(r));
   patterns_.push_back(std::move(pattern));
+  return routes_.back();
 }
 
 RouteTable::Found RouteTable::find(const std::string& method, const std::vector<std::string>& segments) const {

@@ -37,6 +37,15 @@ struct Route {
   RouteHandler handler;
   std::vector<QueryParam> query = {};
   std::string response_type = "application/json";
+  // For the OpenAPI document; set after add() (t.add({...}).body = "..."),
+  // so that the positional initializers above keep compiling.
+  std::string body = {};    // what a PUT/POST body holds ("": no body expected)
+  std::string body_type = "application/json";
+  int status = 200;         // the status of success (202: a job was queued)
+  std::string description = {};  // more than the summary: behaviour, limits
+  // The token may also come as ?access_token= (EventSource cannot set
+  // headers); only where a browser needs it, since URLs end up in logs.
+  bool token_in_query = false;
 };
 
 // One segment of a parsed pattern: a literal, or a parameter's name.
@@ -49,8 +58,9 @@ struct PatternSegment {
 class RouteTable {
  public:
   // Throws std::logic_error on a malformed pattern or a duplicate (method,
-  // pattern): both are programming errors caught by every test.
-  void add(Route r);
+  // pattern): both are programming errors caught by every test. The
+  // reference returned is valid until the next add.
+  Route& add(Route r);
 
   struct Found {
     const Route* route = nullptr;  // null: no route for this method
@@ -63,6 +73,8 @@ class RouteTable {
   Found find(const std::string& method, const std::vector<std::string>& segments) const;
 
   const std::vector<Route>& routes() const { return routes_; }
+  // The parsed pattern of routes()[i].
+  const std::vector<PatternSegment>& pattern(size_t i) const { return patterns_[i]; }
 
  private:
   std::vector<Route> routes_;

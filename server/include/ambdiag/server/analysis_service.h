@@ -24,6 +24,9 @@
 
 namespace ambdiag::server {
 
+class EventBus;
+class MetricsRegistry;
+
 struct AnalysisOptions {
   std::string db_path;
   int workers = 2;              // analysis threads
@@ -31,6 +34,11 @@ struct AnalysisOptions {
   double alpha = 1e-5;          // false-alarm rate of detection per run: kRecommendedAlphaPerRun (docs/diagnosis.md)
   bool idle_priority = true;    // workers at SCHED_IDLE: ingest and REST first
   bool verbose = true;          // one line per job on stderr
+  // Finished jobs ("job.done", "job.failed"), new models and references
+  // ("model.new", "reference.new") are published here (GET /api/v1/events).
+  EventBus* events = nullptr;
+  // Job durations and CPU by kind are registered here (GET /metrics).
+  MetricsRegistry* metrics = nullptr;
 };
 
 // A request refused for the state it finds: HTTP 409 (rest.md).

@@ -37,6 +37,9 @@ class Historian;
 
 namespace ambdiag::server {
 
+class EventBus;
+class MetricsRegistry;
+
 struct IngestOptions {
   int domain = 0;
   std::vector<std::string> partitions{"*"};  // every site
@@ -58,6 +61,9 @@ struct IngestOptions {
   // Called from the commit thread after the commit that made a run
   // complete (the analysis queues it); must be quick and must not throw.
   std::function<void(const std::string& run_id)> on_run_complete;
+  // After each commit: "run.new" for a run first stored, "run.status" when
+  // a run became complete or incomplete (GET /api/v1/events). May be null.
+  EventBus* events = nullptr;
 };
 
 // Counters, readable from any thread (REST health).
@@ -76,6 +82,7 @@ struct IngestCounters {
   // remote participant or endpoint: docs/streaming.md, "Security").
   void reject(const std::string& reason);
   int64_t rejected_total() const;
+  std::map<std::string, int64_t> rejected_by_reason() const;
   nlohmann::json to_json() const;
 
  private:
@@ -105,5 +112,10 @@ class Ingest {
   IngestCounters counters_;
   std::unique_ptr<Impl> impl_;
 };
+
+// Ingest's counters as metrics (GET /metrics): runs received by outcome,
+// blocks, bytes, rejected samples by reason, the queue. They count from
+// this process' start. `ingest` must outlive the registry's scrapes.
+void register_ingest_metrics(MetricsRegistry& registry, const Ingest& ingest);
 
 }  // namespace ambdiag::server

@@ -10,10 +10,15 @@
 //   pumps' models and references, runs' analyses and their files, jobs,
 //   explain requests (rest.md), with `Authorization: Bearer TOKEN` and roles
 //
+//   GET /api/v1/openapi.json              OpenAPI 3.1 of every route (from the route table)
+//   GET /metrics                           Prometheus text format 0.0.4, no token
+//   GET /api/v1/events                     server-sent events (new runs, jobs, ...)
+//
 // JSON everywhere else; errors are {"error": "..."} with 400 (bad request),
 // 401 (no or unknown token), 403 (role too low), 404 (unknown path, pump,
-// run or job), 405 (method), 409 (state), 413 (body too large), 503 (a
-// write on a server without the analysis service).
+// run or job), 405 (method), 409 (state), 413 (body too large), 429 (rate
+// limit), 503 (a write on a server without the analysis service, too many
+// event streams).
 //
 // It reads the historian through its own read connections (one per worker
 // thread, opened on demand), so it runs beside the one writer (the DDS
@@ -30,6 +35,8 @@
 namespace ambdiag::server {
 
 class AnalysisService;
+class EventBus;
+class MetricsRegistry;
 
 struct RestOptions {
   std::string db_path;          // must exist with the current schema (a writer creates it)
@@ -54,6 +61,26 @@ struct RestOptions {
   // and key (docs/service.md, "HTTPS"); the constructor throws InputError
   // naming the file if one is missing, unreadable or not the other's match.
   std::string tls_cert_path, tls_key_path;
+  // GET /metrics renders it; the server registers its own families in it
+  // (HTTP requests, jobs, streams). Null: the server makes its own. One
+  // RestServer per registry.
+  MetricsRegistry* metrics = nullptr;
+  // GET /api/v1/events streams it. Null: the server makes its own (then
+  // only what is published to it directly shows).
+  EventBus* events = nullptr;
+  // Event streams open at once (each holds a worker thread; 503 beyond;
+  // never more than half of worker_threads),
+  // the heartbeat of an idle stream, and the events queued for a slow
+  // client before it is disconnected.
+  int max_event_streams = 16;
+  int event_heartbeat_ms = 15000;
+  int event_queue_max = 1024;
+  // Requests per second per token (per client address without one), with
+  // bursts of rate_limit_burst; 0: no limit (the default here: `ambdiag
+  // serve` sets 50 in bursts of 100 unless --rate-limit says otherwise).
+  // Open routes are not limited.
+  double rate_limit_per_s = 0;
+  double rate_limit_burst = 100;
 };
 
 class RestServer {

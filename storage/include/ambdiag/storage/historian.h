@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -256,6 +257,8 @@ class Historian {
   std::optional<Job> find_job(const JobKey& key);
   std::vector<Job> list_jobs(const JobFilter& filter);
   std::int64_t count_jobs(JobStatus status);
+  // Jobs by (kind, status) (GET /metrics); one scan of the jobs table.
+  std::map<std::pair<std::string, std::string>, std::int64_t> count_jobs_by_kind_and_status();
   // A done job's file, nullopt when it has none of that name.
   std::optional<JobArtifact> find_artifact(std::int64_t job_id, const std::string& name);
   std::vector<std::string> list_artifacts(std::int64_t job_id);

@@ -1,0 +1,201 @@
+#include "routes/openapi.h"
+
+#include <cctype>
+#include <set>
+
+namespace ambdiag::server::detail {
+
+namespace {
+
+using nlohmann::json;
+
+struct ErrorResponse {
+  int status;
+  const char* name;
+  const char* description;
+};
+
+// rest.md's errors, each with the {"error"} body.
+constexpr ErrorResponse kErrors[] = {
+    {400, "BadRequest", "a bad request: the message names the field, parameter or encoding"},
+    {401, "Unauthorized", "no token, or an unknown or revoked one"},
+    {403, "Forbidden", "the token's role is too low: the message names the role needed"},
+    {404, "NotFound", "no such resource (unknown pump, run, job, alarm or path)"},
+    {409, "Conflict", "the state does not allow the request"},
+    {413, "PayloadTooLarge", "the body is larger than the server accepts (8 MiB by default)"},
+    {429, "TooManyRequests",
+     "the token's (or, without one, the address') request rate is over the limit; Retry-After says when to "
+     "retry"},
+    {500, "ServerError", "a server fault"},
+    {503, "Unavailable",
+     "not served now: a write on a server without the analysis service, or too many event streams open"},
+};
+
+json error_ref(int status) {
+  for (const auto& e : kErrors)
+    if (e.status == status) return {{"$ref", std::string("#/components/responses/") + e.name}};
+  return json::object();
+}
+
+json components() {
+  json responses = json::object();
+  const json error_content = {{"application/json", {{"schema", {{"$ref", "#/components/schemas/Error"}}}}}};
+  for (const auto& e : kErrors) {
+    json r = {{"description", e.description}, {"content", error_content}};
+    if (e.status == 429)
+      r["headers"] = {
+          {"Retry-After",
+           {{"description", "seconds until a request is allowed again"}, {"schema", {{"type", "integer"}}}}}};
+    if (e.status == 401)
+      r["headers"] = {{"WWW-Authenticate", {{"description", "Bearer"}, {"schema", {{"type", "string"}}}}}};
+    responses[e.name] = r;
+  }
+  return {{"schemas",
+           {{"Error",
+             {{"type", "object"},
+              {"required", {"error"}},
+              {"properties",
+               {{"error",
+                 {{"type", "string"},
+                  {"description", "what is wrong, naming the field, parameter or state"}}}}}}}}},
+          {"responses", responses},
+          {"securitySchemes",
+           {{"bearer",
+             {{"type", "http"},
+              {"scheme", "bearer"},
+              {"description",
+               "a token from `ambdiag token add` (only its hash is stored); its role: viewer < operator < "
+               "engineer < admin"}}},
+            {"access_token",
+             {{"type", "apiKey"},
+              {"in", "query"},
+              {"name", "access_token"},
+              {"description",
+               "the same token as ?access_token=, only on the routes that say so (a browser's EventSource "
+               "cannot set headers)"}}}}}};
+}
+
+std::string operation_id(const std::string& method, const std::string& pattern,
+                         std::set<std::string>& taken) {
+  std::string id;
+  for (const char c : method) id += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char c : pattern) {
+    const bool word = std::isalnum(static_cast<unsigned char>(c)) != 0;
+    if (word)
+      id += c;
+    else if (id.back() != '_')
+      id += '_';
+  }
+  while (id.back() == '_') id.pop_back();
+  std::string unique = id;
+  for (int n = 2; !taken.insert(unique).second; ++n) unique = id + "_" + std::to_string(n);
+  return unique;
+}
+
+json content_schema(const std::string& type) {
+  if (type == "application/json") return {{"type", "object"}};
+  return {{"type", "string"}};
+}
+
+json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool anonymous_read,
+               std::set<std::string>& ids) {
+  const std::string role = r.role ? storage::to_string(*r.role) : "none";
+  std::string description = r.summary + ".";
+  if (!r.description.empty()) description += " " + r.description;
+  description += r.role ? " Role: " + role + " or higher." : " No token needed.";
+  if (r.method == "GET") description += " HEAD answers too.";
+  json op = {{"operationId", operation_id(r.method, r.pattern, ids)},
+             {"summary", r.summary},
+             {"description", description},
+             {"x-ambdiag-role", role}};
+
+  json params = json::array();
+  for (const auto& s : pattern) {
+    if (!s.param) continue;
+    params.push_back(
+        {{"name", s.text},
+         {"in", "path"},
+         {"required", true},
+         {"schema", {{"type", "string"}}},
+         {"description", s.rest ? "URL-encoded ('/' as %2F, ':' as %3A); an unencoded '/' is accepted too"
+                                : "URL-encoded path segment"}});
+  }
+  for (const auto& q : r.query) {
+    json p = {{"name", q.name}, {"in", "query"}, {"required", q.required}, {"description", q.description}};
+    if (q.repeated) {
+      p["schema"] = {{"type", "array"}, {"items", {{"type", "string"}}}};
+      p["style"] = "form";
+      p["explode"] = true;
+    } else {
+      p["schema"] = {{"type", "string"}};
+    }
+    params.push_back(p);
+  }
+  if (!params.empty()) op["parameters"] = params;
+
+  if (!r.body.empty())
+    op["requestBody"] = {{"required", true},
+                         {"description", r.body},
+                         {"content", {{r.body_type, {{"schema", content_schema(r.body_type)}}}}}};
+
+  json responses = {{std::to_string(r.status),
+                     {{"description", r.summary},
+                      {"content", {{r.response_type, {{"schema", content_schema(r.response_type)}}}}}}}};
+  std::vector<int> errors = {400, 404, 500};
+  if (r.role) errors.insert(errors.end(), {401, 403, 429});
+  if (r.method != "GET")
+    errors.insert(errors.end(), {409, 413, 503});
+  else if (r.token_in_query)
+    errors.push_back(503);
+  for (const int e : errors) responses[std::to_string(e)] = error_ref(e);
+  op["responses"] = responses;
+
+  if (!r.role) {
+    op["security"] = json::array();  // open: no token
+  } else {
+    json sec = json::array({{{"bearer", json::array()}}});
+    if (r.token_in_query) sec.push_back({{"access_token", json::array()}});
+    if (anonymous_read && *r.role == storage::Role::viewer)
+      sec.push_back(json::object());  // --anonymous-read
+    op["security"] = sec;
+  }
+  return op;
+}
+
+std::string openapi_path(const std::vector<PatternSegment>& pattern) {
+  std::string p;
+  for (const auto& s : pattern) p += "/" + (s.param ? "{" + s.text + "}" : s.text);
+  return p;
+}
+
+}  // namespace
+
+json openapi_document(const RouteTable& table, bool anonymous_read) {
+  json paths = json::object();
+  std::set<std::string> ids;
+  for (size_t i = 0; i < table.routes().size(); ++i) {
+    const Route& r = table.routes()[i];
+    std::string method;
+    for (const char c : r.method) method += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    paths[openapi_path(table.pattern(i))][method] = operation(r, table.pattern(i), anonymous_read, ids);
+  }
+  return {{"openapi", "3.1.0"},
+          {"info",
+           {{"title", "ambdiag"},
+            {"version", "0.1.0"},
+            {"summary",
+             "model-based fault diagnosis of pumps in active magnetic bearings: runs, analyses, jobs, "
+             "trends, alarms"},
+            {"description",
+             "Generated from the server's route table, so it lists every route this server answers. Errors "
+             "are the status "
+             "and {\"error\": \"message\"}. Every request but the open routes (x-ambdiag-role: none) needs "
+             "`Authorization: Bearer TOKEN` with at least the route's role (x-ambdiag-role); roles: viewer < "
+             "operator < "
+             "engineer < admin. Times are ISO 8601 UTC."}}},
+          {"security", json::array({{{"bearer", json::array()}}})},
+          {"paths", paths},
+          {"components", components()}};
+}
+
+}  // namespace ambdiag::server::detail
