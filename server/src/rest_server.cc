@@ -27,6 +27,8 @@ struct RestServer::Impl {
   explicit Impl(RestOptions o) : opt(std::move(o)), pool(opt.db_path, std::max(1, opt.worker_threads)) {
     detail::add_read_routes(routes, std::chrono::steady_clock::now());
     detail::add_analysis_routes(routes);
+    detail::add_trend_routes(routes);
+    detail::add_grafana_routes(routes);
   }
 
   void handle(const httplib::Request& req, httplib::Response& res) {
@@ -44,7 +46,7 @@ struct RestServer::Impl {
       caller = detail::authorize(pool, req, *route.role, opt.anonymous_read, res);
       if (!caller) return;  // 401 or 403 sent
     }
-    if (route.method != "GET" && !opt.analysis)
+    if (route.method != "GET" && !route.read_only && !opt.analysis)
       return send_error(res, 503, "this server runs without the analysis service: " + req.method + " " + req.path + " is not served");
     detail::RouteContext ctx{pool, opt, caller.value_or(detail::Caller{}), req, res};
     route.handler(ctx, found.params);
