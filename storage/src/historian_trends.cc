@@ -18,7 +18,7 @@ namespace {
 // text has a stable address (the statement cache's key).
 struct MonitoringSeries {
   SeriesInfo info;
-  std::string count_sql, points_sql;
+  std::string count_sql, last_sql, points_sql, values_sql;
 };
 
 const std::vector<MonitoringSeries>& monitoring_series() {
@@ -34,10 +34,13 @@ const std::vector<MonitoringSeries>& monitoring_series() {
       std::string name = "monitoring." + col;
       if (col != "speed_rpm") name[name.rfind('_')] = '.';  // force_1x_amp_n_ax -> force_1x_amp_n.ax
       out.push_back({{name, unit},
-                     "SELECT count(*), min(time_ns), max(time_ns) FROM monitoring_snapshots WHERE pump_id = ?1 "
-                     "AND time_ns BETWEEN ?2 AND ?3",
+                     "SELECT count(*) FROM monitoring_snapshots WHERE pump_id = ?1 AND time_ns BETWEEN ?2 AND ?3",
+                     "SELECT time_ns FROM monitoring_snapshots WHERE pump_id = ?1 AND time_ns BETWEEN ?2 AND ?3 "
+                     "ORDER BY time_ns DESC LIMIT 1",
                      "SELECT time_ns, " + col + ", NULL, '' FROM monitoring_snapshots WHERE pump_id = ?1 "
-                     "AND time_ns BETWEEN ?2 AND ?3 ORDER BY time_ns LIMIT ?4"});
+                     "AND time_ns BETWEEN ?2 AND ?3 ORDER BY time_ns LIMIT ?4",
+                     "SELECT time_ns, " + col + " FROM monitoring_snapshots WHERE pump_id = ?1 "
+                     "AND time_ns BETWEEN ?2 AND ?3 ORDER BY time_ns"});
     }
     return out;
   }();
@@ -45,17 +48,24 @@ const std::vector<MonitoringSeries>& monitoring_series() {
 }
 
 constexpr const char* kSeriesCountSql =
-    "SELECT count(*), min(time_ns), max(time_ns) FROM series_points WHERE series_id = ?1 AND time_ns BETWEEN ?2 AND ?3";
+    "SELECT count(*) FROM series_points WHERE series_id = ?1 AND time_ns BETWEEN ?2 AND ?3";
+constexpr const char* kSeriesLastSql =
+    "SELECT time_ns FROM series_points WHERE series_id = ?1 AND time_ns BETWEEN ?2 AND ?3 ORDER BY time_ns DESC LIMIT 1";
 constexpr const char* kSeriesPointsSql =
     "SELECT time_ns, value, sd, run_id FROM series_points WHERE series_id = ?1 AND time_ns BETWEEN ?2 AND ?3 "
     "ORDER BY time_ns, run_id LIMIT ?4";
+// For buckets: time and value only (no run_id text to copy per row).
+constexpr const char* kSeriesValuesSql =
+    "SELECT time_ns, value FROM series_points WHERE series_id = ?1 AND time_ns BETWEEN ?2 AND ?3 ORDER BY time_ns";
 
 // Where a series' points are read from: its rows of series_points, or a
 // column of the pump's monitoring snapshots.
 struct Source {
   SeriesInfo info;
   const char* count_sql = kSeriesCountSql;
+  const char* last_sql = kSeriesLastSql;
   const char* points_sql = kSeriesPointsSql;
+  const char* values_sql = kSeriesValuesSql;
   std::optional<std::int64_t> series_id;  // nullopt: monitoring (bound by pump_id)
 };
 
@@ -176,14 +186,14 @@ std::optional<Trend> Historian::query_trend(const std::string& pump_id, const st
   std::optional<Source> src;
   auto& cat = impl_->stmt("SELECT series_id, unit FROM series WHERE pump_id = ? AND name = ?");
   cat.bind(1, pump_id).bind(2, name);
-  if (cat.step()) src = Source{{name, cat.col_text(1)}, kSeriesCountSql, kSeriesPointsSql, cat.col_int(0)};
+  if (cat.step()) src = Source{{name, cat.col_text(1)}, kSeriesCountSql, kSeriesLastSql, kSeriesPointsSql, kSeriesValuesSql, cat.col_int(0)};
   cat.reset();
   if (!src && name.starts_with("monitoring."))
     for (const auto& ms : monitoring_series())
       if (ms.info.name == name) {
         auto& m = impl_->stmt("SELECT 1 FROM monitoring_snapshots WHERE pump_id = ? LIMIT 1");
         m.bind(1, pump_id);
-        if (m.step()) src = Source{ms.info, ms.count_sql.c_str(), ms.points_sql.c_str(), std::nullopt};
+        if (m.step()) src = Source{ms.info, ms.count_sql.c_str(), ms.last_sql.c_str(), ms.points_sql.c_str(), ms.values_sql.c_str(), std::nullopt};
         m.reset();
       }
   if (!src) return std::nullopt;
@@ -197,59 +207,66 @@ std::optional<Trend> Historian::query_trend(const std::string& pump_id, const st
 
   Trend t;
   t.series = src->info;
-  auto& c = bind_range(impl_->stmt(src->count_sql));
-  c.step();
-  t.count = c.col_int(0);
-  const std::int64_t first_ns = c.col_int(1), last_ns = c.col_int(2);
-  c.reset();
-  if (t.count == 0) return t;
-
+  // One more than max_points: fewer is the whole answer, without a count.
   auto& s = bind_range(impl_->stmt(src->points_sql));
-  if (t.count <= q.max_points || q.raw) {
-    s.bind(4, q.raw ? q.max_points + 1 : q.max_points);
-    while (s.step()) t.points.push_back(read_point(s));
-    s.reset();
-    if (static_cast<std::int64_t>(t.points.size()) > q.max_points) {
-      // The next page starts at the first time not shown; points of this
-      // page at that time go to the next one too, so none is shown twice.
-      const std::int64_t next = t.points[static_cast<size_t>(q.max_points)].time_ns;
-      t.points.resize(static_cast<size_t>(q.max_points));
-      auto keep = t.points.size();
-      while (keep > 0 && t.points[keep - 1].time_ns == next) --keep;
-      // More than max_points points at one time: shown here, the next page after them.
-      if (keep == 0) {
-        t.next_from_ns = next + 1;
-      } else {
-        t.points.resize(keep);
-        t.next_from_ns = next;
-      }
-      t.truncated = true;
+  s.bind(4, q.max_points + 1);
+  while (s.step()) t.points.push_back(read_point(s));
+  s.reset();
+  t.count = static_cast<std::int64_t>(t.points.size());
+  if (t.count <= q.max_points) return t;
+  if (q.raw) {
+    auto& c = bind_range(impl_->stmt(src->count_sql));
+    c.step();
+    t.count = c.col_int(0);
+    c.reset();
+    // The next page starts at the first time not shown; points of this
+    // page at that time go to the next one too, so none is shown twice.
+    const std::int64_t next = t.points[static_cast<size_t>(q.max_points)].time_ns;
+    t.points.resize(static_cast<size_t>(q.max_points));
+    auto keep = t.points.size();
+    while (keep > 0 && t.points[keep - 1].time_ns == next) --keep;
+    // More than max_points points at one time: shown here, the next page after them.
+    if (keep == 0) {
+      t.next_from_ns = next + 1;
+    } else {
+      t.points.resize(keep);
+      t.next_from_ns = next;
     }
+    t.truncated = true;
     return t;
   }
+  const std::int64_t first_ns = t.points.front().time_ns;
+  t.points.clear();
+  auto& l = bind_range(impl_->stmt(src->last_sql));
+  l.step();
+  const std::int64_t last_ns = l.col_int(0);
+  l.reset();
   // Equal buckets over the points' extent in the range: width > span /
   // max_points, so there are at most max_points. Unsigned: the span of two
   // int64 times may exceed int64.
   const auto span = static_cast<std::uint64_t>(last_ns) - static_cast<std::uint64_t>(first_ns);
   const std::uint64_t width = span / static_cast<std::uint64_t>(q.max_points) + 1;
   t.bucket_ns = static_cast<std::int64_t>(std::min<std::uint64_t>(width, static_cast<std::uint64_t>(INT64_MAX)));
-  s.bind(4, std::int64_t{-1});  // no limit
+  auto& v = bind_range(impl_->stmt(src->values_sql));
   std::uint64_t current = UINT64_MAX;
-  while (s.step()) {
-    const std::int64_t time_ns = s.col_int(0);
-    const double v = s.col_double(1);
+  while (v.step()) {
+    const std::int64_t time_ns = v.col_int(0);
+    const double value = v.col_double(1);
     const std::uint64_t idx = (static_cast<std::uint64_t>(time_ns) - static_cast<std::uint64_t>(first_ns)) / width;
     if (idx != current) {
       current = idx;
-      t.buckets.push_back({static_cast<std::int64_t>(static_cast<std::uint64_t>(first_ns) + idx * width), v, v, v, v, 0});
+      t.buckets.push_back({static_cast<std::int64_t>(static_cast<std::uint64_t>(first_ns) + idx * width), value, value,
+                           value, value, 0});
     }
     auto& b = t.buckets.back();
-    b.min = std::min(b.min, v);
-    b.max = std::max(b.max, v);
-    b.last = v;
+    b.min = std::min(b.min, value);
+    b.max = std::max(b.max, value);
+    b.last = value;
     ++b.count;
   }
-  s.reset();
+  v.reset();
+  t.count = 0;
+  for (const auto& b : t.buckets) t.count += b.count;
   return t;
 }
 
