@@ -9,6 +9,8 @@
 //   GET /api/v1/runs/{run_id}/samples.f32  application/octet-stream, the exact bytes
 //   pumps' models and references, runs' analyses and their files, jobs,
 //   explain requests (rest.md), with `Authorization: Bearer TOKEN` and roles
+//   pumps' trend series, trends and prognosis; a Grafana data source under
+//   /api/v1/grafana (docs/service.md "Trends")
 //
 // JSON everywhere else; errors are {"error": "..."} with 400 (bad request),
 // 401 (no or unknown token), 403 (role too low), 404 (unknown path, pump,
