@@ -122,7 +122,8 @@ void prognosis(RouteContext& c, const std::string& pump_id) {
   if (!t) not_found_series(pump_id, name);
   std::vector<PrognosisPoint> pts;
   for (const auto& p : t->points) pts.push_back({1e-9 * static_cast<double>(p.time_ns), p.value, p.sd});
-  const Prognosis p = prognose(std::move(pts), *limit);
+  const PrognosisOptions opt;
+  const Prognosis p = prognose(std::move(pts), *limit, opt);
   constexpr double kDay = 86400.0;
   json j = {{"pump_id", pump_id},
             {"series", name},
@@ -142,7 +143,7 @@ void prognosis(RouteContext& c, const std::string& pump_id) {
   }
   if (p.crossing_s) {
     j["estimated_at"] = utc_from_s(*p.crossing_s).value_or("beyond 2262");
-    j["interval"] = {{"level", 0.9},
+    j["interval"] = {{"level", opt.level},
                      {"from", utc_from_s(*p.lower_s).value_or("before 1677")},
                      {"to", utc_from_s(*p.upper_s).value_or("beyond 2262")}};
   }
