@@ -249,6 +249,12 @@ TEST_F(TrendRest, GrafanaDataSourceAnswersTheJsonApi) {
   for (const auto& m : body(r)) listed = listed || m["value"] == "P-1:" + kWear;
   EXPECT_TRUE(listed) << r->body;
   EXPECT_TRUE(body(post("/api/v1/grafana/search", {{"target", ""}})).is_array());
+  auto vars = body(post("/api/v1/grafana/variable", {{"payload", {{"target", "pumps"}}}}));
+  ASSERT_EQ(vars.size(), 1u);
+  EXPECT_EQ(vars[0]["__value"], "P-1");
+  vars = body(post("/api/v1/grafana/variable", {{"payload", {{"target", "series:P-1"}}}}));
+  EXPECT_EQ(vars.size(), 3u);
+  EXPECT_EQ(post("/api/v1/grafana/variable", {{"payload", {{"target", "tags"}}}})->status, 400);
 
   const json q = {{"range", {{"from", "2026-01-01T00:00:00.000Z"}, {"to", "2026-01-30T12:00:00.000Z"}}},
                   {"maxDataPoints", 10},

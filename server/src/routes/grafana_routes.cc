@@ -150,6 +150,31 @@ void annotations(RouteContext& c) {
   send_json(c.res, 200, out);
 }
 
+// A dashboard variable's values: the pumps (payload.target "pumps" or
+// absent), or the series of one pump (payload.target "series:PUMP").
+void variable(RouteContext& c) {
+  const json body = parse_body(c.req, "grafana variable");
+  if (!body.is_object()) throw InputError("grafana variable: the body is not an object");
+  std::string target = "pumps";
+  if (body.contains("payload") && body["payload"].is_object() && body["payload"].contains("target")) {
+    if (!body["payload"]["target"].is_string()) throw InputError("payload.target: not a string");
+    target = body["payload"]["target"].get<std::string>();
+  }
+  auto h = c.pool.acquire();
+  auto snap = h->snapshot();
+  json out = json::array();
+  if (target == "pumps") {
+    for (const auto& p : h->list_pumps()) out.push_back({{"__text", p.pump_id}, {"__value", p.pump_id}});
+  } else if (target.starts_with("series:")) {
+    const std::string pump_id = target.substr(7);
+    if (!h->find_pump(pump_id)) throw NotFoundError("payload.target: no pump '" + pump_id + "'");
+    for (const auto& s : h->list_series(pump_id)) out.push_back({{"__text", s.name}, {"__value", s.name}});
+  } else {
+    throw InputError("payload.target: '" + target + "' is neither 'pumps' nor 'series:PUMP'");
+  }
+  send_json(c.res, 200, out);
+}
+
 }  // namespace
 
 void add_grafana_routes(RouteTable& t) {
@@ -179,6 +204,8 @@ void add_grafana_routes(RouteTable& t) {
             [](RouteContext& c, const PathParams&) { send_json(c.res, 200, json::array()); });
   read_post("/api/v1/grafana/query", "Grafana: targets PUMP:SERIES over range as [value, epoch ms] datapoints, maxDataPoints by min/max buckets",
             [](RouteContext& c, const PathParams&) { query(c); });
+  read_post("/api/v1/grafana/variable", "Grafana JSON data source: a variable's values (the pumps, or a pump's series)",
+            [](RouteContext& c, const PathParams&) { variable(c); });
   read_post("/api/v1/grafana/annotations", "Grafana: runs where detection fired, as annotations",
             [](RouteContext& c, const PathParams&) { annotations(c); });
 }
