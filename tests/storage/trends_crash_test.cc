@@ -64,12 +64,7 @@ TEST(HistorianTrendsCrash, KilledWhileThePointsAreWrittenLeavesNeitherResultNorP
   const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
   constexpr int kJobs = 12, kFinished = 5;
   add_runs_and_jobs(path, kJobs);
-  int fds[2];
-  ASSERT_EQ(::pipe(fds), 0);
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    ::close(fds[0]);
+  const auto child = crash::fork_child([&](int fd) {
     auto h = Historian::open(path);
     for (int i = 0; i < kFinished; ++i) {
       const auto j = h.claim_job("child");
@@ -82,13 +77,12 @@ TEST(HistorianTrendsCrash, KilledWhileThePointsAreWrittenLeavesNeitherResultNorP
     std::string& name = values.back().name;
     const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
     const auto mid = (reinterpret_cast<std::uintptr_t>(name.data()) + name.size() / 2) & ~(page - 1);
-    crash::report_guard_page_faults(fds[1]);
+    crash::report_guard_page_faults(fd);
     ::mprotect(reinterpret_cast<void*>(mid), page, PROT_NONE);
     h.finish_job(j->job_id, j->attempts, "{}", {}, values);
-    ::_exit(3);  // not reached
-  }
-  ::close(fds[1]);
-  const crash::Killed k = crash::kill_after_report(child, fds[0]);
+  });
+  ASSERT_GE(child.pid, 0);
+  const crash::Killed k = crash::kill_after_report(child.pid, child.fd);
   EXPECT_TRUE(k.reported && k.by_sigkill());
   EXPECT_EQ(k.byte, 'T');
   auto h = Historian::open(path);
@@ -103,33 +97,12 @@ TEST(HistorianTrendsCrash, KilledAtAnyTimeInALoopOfFinishesResultsAndPointsGoTog
   add_runs_and_jobs(path, kJobs);
   int total_done = 0;
   for (int round = 0; round < 3; ++round) {
-    int fds[2];
-    ASSERT_EQ(::pipe(fds), 0);
-    const pid_t child = ::fork();
-    ASSERT_GE(child, 0);
-    if (child == 0) {
-      ::close(fds[0]);
-      auto h = Historian::open(path);
-      h.requeue_running_jobs();
-      int n = 0;
-      while (auto j = h.claim_job("child")) {
-        h.finish_job(j->job_id, j->attempts, "{}", {}, values_of(j->job_id));
-        if (++n == 20) {
-          const char c = 'F';
-          [[maybe_unused]] auto w = ::write(fds[1], &c, 1);
-        }
-      }
-      ::_exit(3);
-    }
-    ::close(fds[1]);
-    char c = 0;
-    ASSERT_EQ(::read(fds[0], &c, 1), 1);
-    ::usleep(static_cast<useconds_t>(300 + 900 * round));  // into the loop, at a moment that differs
-    ::kill(child, SIGKILL);
-    int status = 0;
-    ::waitpid(child, &status, 0);
-    ::close(fds[0]);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the child finished all jobs before it was killed";
+    // Into the loop, at a moment that differs.
+    const auto k = crash::kill_a_finishing_loop(path, static_cast<useconds_t>(300 + 900 * round), [](Historian& h, const Job& j) {
+      h.finish_job(j.job_id, j.attempts, "{}", {}, values_of(j.job_id));
+    });
+    ASSERT_TRUE(k.reported);
+    ASSERT_TRUE(k.by_sigkill()) << "the child finished all jobs before it was killed";
     auto h = Historian::open(path);
     EXPECT_EQ(raw_integrity_check(path), "ok");
     const int done = check_results_and_points_together(h);
