@@ -1,7 +1,8 @@
 // A child process killed by its parent at a chosen moment inside SQLite
-// (crash_test.cc, jobs_crash_test.cc): the child makes a page of the data it
-// hands SQLite unreadable; when SQLite reads it, the SIGSEGV handler reports
-// 'T' on a pipe and waits for the parent's SIGKILL.
+// (crash_test.cc, jobs_crash_test.cc, trends_crash_test.cc): the child makes
+// a page of the data it hands SQLite unreadable; when SQLite reads it, the
+// SIGSEGV handler reports 'T' on a pipe and waits for the parent's SIGKILL.
+// Or a child in a loop of writes, killed a moment after it reports.
 #pragma once
 
 #include <signal.h>
