@@ -6,10 +6,12 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <thread>
 
+#include "ambdiag/core/error.h"
 #include "ambdiag/core/process_lock.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/ingest.h"
@@ -34,10 +36,25 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
   return static_cast<int>(*v);
 }
 
+// The server's default alarm rules (docs/service.md "Alarms"): the file's
+// rules over the built-in ones. Checked here so a bad file stops the start
+// with the field named, before anything listens.
+nlohmann::json read_alarm_defaults(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw UsageError("--alarm-defaults: cannot read " + path);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("--alarm-defaults " + path + ": not JSON: " + e.what());
+  }
+  return j;
+}
+
 int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
-                   "--workers", "--reference-runs", "--alpha"},
+                   "--workers", "--reference-runs", "--alpha", "--alarm-defaults"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -60,6 +77,7 @@ int run_serve(const std::vector<std::string>& argv) {
   aopt.alpha = args.number("--alpha").value_or(aopt.alpha);
   if (!(aopt.alpha > 0 && aopt.alpha < 0.5)) throw UsageError("--alpha: must be in (0, 0.5)");
   aopt.verbose = opt.verbose;
+  if (const auto file = args.option("--alarm-defaults")) aopt.alarm_defaults = read_alarm_defaults(*file);
 
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
@@ -140,6 +158,7 @@ std::vector<Command> serve_commands() {
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--quiet]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
+           "                     [--alarm-defaults FILE]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -151,6 +170,9 @@ std::vector<Command> serve_commands() {
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
            "requests without one read as viewer. One server per historian file (FILE.lock).\n"
+           "Each analysed run is evaluated against the pump's alarm rules; --alarm-defaults FILE: the server's\n"
+           "default rules (JSON {\"rules\": [...], \"plant_state\"?}, each rule over the built-in one of its id;\n"
+           "docs/service.md \"Alarms\"), checked at the start.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"

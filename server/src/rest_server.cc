@@ -27,6 +27,7 @@ struct RestServer::Impl {
   explicit Impl(RestOptions o) : opt(std::move(o)), pool(opt.db_path, std::max(1, opt.worker_threads)) {
     detail::add_read_routes(routes, std::chrono::steady_clock::now());
     detail::add_analysis_routes(routes);
+    detail::add_alarm_routes(routes);
   }
 
   void handle(const httplib::Request& req, httplib::Response& res) {

@@ -143,6 +143,11 @@ TEST(HistorianSchema, AVersion3FileIsMigratedToVersion4KeepingItsRuns) {
            "DROP TABLE pump_references; DROP TABLE models; "
            "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "
            "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT; "
+           // v6's alarm tables back to v1's unused `alarms`.
+           "DROP TABLE alarm_events; DROP TABLE alarms; DROP TABLE alarm_rules; DROP TABLE alarm_conditions; "
+           "DROP TABLE alarm_cursors; CREATE TABLE alarms (alarm_id INTEGER PRIMARY KEY, pump_id TEXT NOT NULL, "
+           "raised_at TEXT NOT NULL, severity TEXT NOT NULL, kind TEXT NOT NULL, message TEXT NOT NULL) STRICT; "
+           "CREATE INDEX alarms_by_pump ON alarms(pump_id, raised_at); "
            "PRAGMA user_version = 3;");
   ASSERT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'tokens'"), 0);
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
@@ -156,8 +161,8 @@ TEST(HistorianSchema, AVersion3FileIsMigratedToVersion4KeepingItsRuns) {
     EXPECT_TRUE(h.enqueue_job({"analysis", "P-7", "P-7/old", 1, 0}).second);
     EXPECT_FALSE(h.add_token("ops", Role::admin).empty());
   }
-  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), 4);
-  EXPECT_EQ(Historian::schema_version(), 4);
+  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'alarm_events'"), 1);
   EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM pragma_table_info('jobs') WHERE name = 'attempts'"), 1);
   auto r = Historian::open(path, Historian::Mode::read);
   EXPECT_EQ(r.count_jobs(JobStatus::queued), 1);

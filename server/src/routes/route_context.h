@@ -56,5 +56,7 @@ std::int64_t positive_integer(const std::string& text, const std::string& what);
 void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point started);
 // models, references, analyses and their files, explain, jobs (analysis_routes.cc).
 void add_analysis_routes(RouteTable& t);
+// alarms, their journal, KPIs and each pump's alarm rules (alarm_routes.cc).
+void add_alarm_routes(RouteTable& t);
 
 }  // namespace ambdiag::server::detail
