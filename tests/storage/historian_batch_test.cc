@@ -118,7 +118,8 @@ TEST(HistorianSchema, AVersion1FileIsMigratedToTheLatestKeepingItsRuns) {
   }
   // Back to what migration 1 left: no monitoring table, no checksum kind of
   // the runs, user_version 1.
-  // (v4's tables dropped too, v1's jobs table back.)
+  // (v4's tables dropped too, v1's jobs table back; v6's alarms too.)
+  raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path,
            "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
            "DROP TABLE pump_references; DROP TABLE models; "

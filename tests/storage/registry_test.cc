@@ -138,16 +138,12 @@ TEST(HistorianSchema, AVersion3FileIsMigratedToVersion4KeepingItsRuns) {
     h.end_run("P-7/old", 300, checksum_of(a));
   }
   // Back to what migration 3 left: v1's unused jobs table, no v4 tables.
+  raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path,
            "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
            "DROP TABLE pump_references; DROP TABLE models; "
            "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "
            "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT; "
-           // v6's alarm tables back to v1's unused `alarms`.
-           "DROP TABLE alarm_events; DROP TABLE alarms; DROP TABLE alarm_rules; DROP TABLE alarm_conditions; "
-           "DROP TABLE alarm_cursors; CREATE TABLE alarms (alarm_id INTEGER PRIMARY KEY, pump_id TEXT NOT NULL, "
-           "raised_at TEXT NOT NULL, severity TEXT NOT NULL, kind TEXT NOT NULL, message TEXT NOT NULL) STRICT; "
-           "CREATE INDEX alarms_by_pump ON alarms(pump_id, raised_at); "
            "PRAGMA user_version = 3;");
   ASSERT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'tokens'"), 0);
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate

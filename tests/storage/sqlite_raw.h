@@ -42,6 +42,14 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
+// for the tests that take a file back to an older schema version.
+inline constexpr const char* kUndoAlarmsV6Sql =
+    "DROP TABLE alarm_events; DROP TABLE alarms; DROP TABLE alarm_rules; DROP TABLE alarm_conditions; "
+    "DROP TABLE alarm_cursors; CREATE TABLE alarms (alarm_id INTEGER PRIMARY KEY, pump_id TEXT NOT NULL, "
+    "raised_at TEXT NOT NULL, severity TEXT NOT NULL, kind TEXT NOT NULL, message TEXT NOT NULL) STRICT; "
+    "CREATE INDEX alarms_by_pump ON alarms(pump_id, raised_at);";
+
 // Runs SQL that should fail: SQLite's error message, "" when it succeeded.
 inline std::string raw_exec_error(const std::string& path, const char* sql) {
   sqlite3* db = nullptr;
