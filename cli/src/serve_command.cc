@@ -37,8 +37,9 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
 }
 
 // The server's default alarm rules (docs/service.md "Alarms"): the file's
-// rules over the built-in ones. Checked here so a bad file stops the start
-// with the field named, before anything listens.
+// rules over the built-in ones. Parsed here; the analysis service checks the
+// rules when it is made, so a bad file stops the start with the field named
+// before anything listens.
 nlohmann::json read_alarm_defaults(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw UsageError("--alarm-defaults: cannot read " + path);

@@ -75,14 +75,8 @@ int Historian::put_alarm_rules(const std::string& pump_id, const std::string& ru
   if (pump_id.empty()) throw InputError("put_alarm_rules: empty pump_id");
   Transaction tx(impl_->db, Transaction::Kind::write);
   const std::string now = now_utc();
-  impl_->stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING")
-      .bind(1, pump_id)
-      .bind(2, now)
-      .run();
-  auto& next = impl_->stmt("SELECT coalesce(max(version), 0) + 1 FROM alarm_rules WHERE pump_id = ?");
-  next.bind(1, pump_id).step();
-  const auto version = next.col_int(0);
-  next.reset();
+  impl_->register_pump(pump_id, now);
+  const auto version = impl_->next_version("SELECT coalesce(max(version), 0) + 1 FROM alarm_rules WHERE pump_id = ?", pump_id);
   impl_->stmt("INSERT INTO alarm_rules (pump_id, version, rules_json, created_at, created_by) VALUES (?, ?, ?, ?, ?)")
       .bind(1, pump_id)
       .bind(2, version)
