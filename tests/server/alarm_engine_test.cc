@@ -199,6 +199,31 @@ TEST(AlarmEngine, MissingDataNeverClearsAFaultAlarm) {
   EXPECT_EQ(feed.open("poor_data"), nullptr);
 }
 
+TEST(AlarmEngine, AnAnalysisAlarmCarriesTheFaultItsRunWasDiagnosedWith) {
+  Feed feed{detection_rules(1, 1, 1, 0.8)};
+  RunFacts f = run_with_ratio(0, 3.0);
+  f.best_fault = "dry_run";
+  feed.run(f);
+  EXPECT_EQ(feed.open("detection")->fault, "dry_run");
+  Feed unknown{detection_rules(1, 1, 1, 0.8)};
+  f.best_fault = "unknown";  // nothing explains the change
+  unknown.run(f);
+  EXPECT_FALSE(unknown.open("detection")->fault);
+}
+
+TEST(AlarmEngine, TheDefaultDetectionRuleWantsThreeRunsInARow) {
+  Feed feed{rule_set_from_json(default_rule_set_json(), "")};
+  feed.run(run_with_ratio(0, 1.5));
+  feed.run(run_with_ratio(1, 1.5));
+  feed.run(run_with_ratio(2, 0.5));
+  feed.run(run_with_ratio(3, 1.5));
+  EXPECT_EQ(feed.open("detection"), nullptr) << "two of three is not enough";
+  feed.run(run_with_ratio(4, 1.5));
+  feed.run(run_with_ratio(5, 1.5));
+  ASSERT_NE(feed.open("detection"), nullptr);
+  EXPECT_EQ(feed.open("detection")->run_id, "P-1/run-5");
+}
+
 TEST(AlarmEngine, FaultSeverityFollowsTheParameterSize) {
   for (const auto& [factor, severity] : std::vector<std::pair<double, std::string>>{{1.35, "medium"}, {1.7, "high"}, {2.2, "critical"}}) {
     Feed feed{rules_with({{"id", "fault.balance_piston_wear"}})};
@@ -243,14 +268,14 @@ TEST(AlarmEngine, ModeShiftBeyondTheReferenceScatterRaisesPerLabel) {
   RunFacts f = run_with_ratio(0, 0.5);
   const std::string name = "mode.radial bending 1 (forward).f_hz";
   f.reference[name] = {200.0, 0.5, 3};
-  f.values.push_back({name, "Hz", 203.0, 0.1});  // 1.5 %: inside max(3 %, 5 sd = 1.25 %)
+  f.values.push_back({name, "Hz", 206.0, 0.1});  // 3 %: inside max(5 %, 6 sd = 1.5 %)
   feed.run(f);
   EXPECT_EQ(feed.open(name), nullptr);
-  f.values.back().value = 190.0;  // -5 %
+  f.values.back().value = 185.0;  // -7.5 %
   feed.run(f);
   ASSERT_NE(feed.open(name), nullptr);
   EXPECT_EQ(feed.open(name)->severity, "low");
-  EXPECT_NE(feed.open(name)->message.find("-5.00 %"), std::string::npos) << feed.open(name)->message;
+  EXPECT_NE(feed.open(name)->message.find("-7.50 %"), std::string::npos) << feed.open(name)->message;
 }
 
 TEST(AlarmEngine, OrbitZonesAfterIso14839) {

@@ -218,6 +218,9 @@ AlarmChanges evaluate_run(const AlarmRuleSet& rules, PumpAlarms& pump, const Run
   Evaluation ev(pump, run.pump_id, run.time, run.run_id);
   const std::string suppress = suppression_reason(rules, run.speed_rpm, run.model_speed_rpm);
   const bool usable = !run.analysis_failed;
+  // An analysis alarm carries the fault its run was diagnosed with, if any.
+  const std::optional<std::string> diagnosed =
+      run.detected && run.best_fault && *run.best_fault != "unknown" ? run.best_fault : std::nullopt;
   for (const auto& rule : rules.rules) {
     Observation o;
     switch (rule.kind) {
@@ -228,6 +231,7 @@ AlarmChanges evaluate_run(const AlarmRuleSet& rules, PumpAlarms& pump, const Run
             o.v = s->value;
             o.message = std::string(run.detected ? "change detected" : "no change detected") + ": statistic / threshold " + num(s->value) +
                         (run.best_fault ? ", diagnosis: " + *run.best_fault : "");
+
           }
         break;
       case RuleKind::fault: o = fault_observation(rule, run); break;
@@ -265,6 +269,7 @@ AlarmChanges evaluate_run(const AlarmRuleSet& rules, PumpAlarms& pump, const Run
         }
         break;
     }
+    if (rule.kind != RuleKind::fault && rule.kind != RuleKind::stale_data) o.fault = diagnosed;
     ev.step(rule, rule.id, o, rule.kind == RuleKind::stale_data ? "" : suppress);
   }
   // Template mode rules: one alarm per labelled mode the run identified
@@ -274,7 +279,9 @@ AlarmChanges evaluate_run(const AlarmRuleSet& rules, PumpAlarms& pump, const Run
       if (!s.name.starts_with("mode.")) continue;
       const AlarmRule* rule = rules.find(s.name);
       if (!rule || !rule->is_template()) continue;
-      ev.step(*rule, s.name, mode_observation(*rule, s, run), suppress);
+      Observation o = mode_observation(*rule, s, run);
+      o.fault = diagnosed;
+      ev.step(*rule, s.name, o, suppress);
     }
   return ev.finish();
 }

@@ -56,8 +56,8 @@ struct AlarmRule {
   std::optional<double> nominal;
   // mode.*: value = |x / x_ref - 1| / max(min_relative_shift, k_sd * sd_ref / x_ref), x_ref and sd_ref
   // the mean and sd of the mode's value over the pump's reference runs.
-  double min_relative_shift = 0.03;
-  double k_sd = 5.0;
+  double min_relative_shift = 0.05;
+  double k_sd = 6.0;
   std::optional<double> clearance_m;  // orbit_zone: the touchdown (retainer) bearing clearance
   double limit_s = 86400.0;           // stale_data: value = seconds without a valid run / limit_s
   double nrmse_limit = 0.3;           // poor_data: value = fit.nrmse / nrmse_limit (a failed analysis: above all)
