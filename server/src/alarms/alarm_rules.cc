@@ -329,7 +329,7 @@ json merged_rule_set_json(const json& base, const json& overrides, const std::st
   std::set<std::string> given;
   const json list = overrides.value("rules", json::array());
   for (size_t i = 0; i < list.size(); ++i) {
-    const std::string at = "rules[" + std::to_string(i) + "]";
+    const std::string at = (what.empty() ? "" : what + ": ") + "rules[" + std::to_string(i) + "]";
     const json& r = list[i];
     if (!r.is_object()) throw InputError(at + ": must be an object");
     if (!r.contains("id") || !r["id"].is_string()) throw InputError(at + ".id: must be a string");
