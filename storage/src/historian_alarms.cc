@@ -66,6 +66,14 @@ void bind_alarm(Stmt& s, const AlarmRecord& a) {
   if (a.value) s.bind(18, *a.value); else s.bind_null(18);
 }
 
+// Every row of a stepped-through statement, read by `read_row`.
+template <class Row>
+std::vector<Row> all_rows(Stmt& s, Row (*read_row)(const Stmt&)) {
+  std::vector<Row> out;
+  while (s.step()) out.push_back(read_row(s));
+  return out;
+}
+
 std::string alarm_ref(const AlarmRecord& a) { return "alarm " + quoted(a.rule) + " of pump " + quoted(a.pump_id); }
 
 }  // namespace
@@ -188,50 +196,38 @@ std::vector<AlarmRecord> Historian::list_alarms(const AlarmFilter& f) {
   if (f.state) s.bind(2, *f.state); else s.bind_null(2);
   if (f.active) s.bind(3, std::int64_t{*f.active}); else s.bind_null(3);
   s.bind(4, std::int64_t{f.limit});
-  std::vector<AlarmRecord> out;
-  while (s.step()) out.push_back(read_alarm_row(s));
-  return out;
+  return all_rows(s, read_alarm_row);
 }
 
 std::vector<AlarmRecord> Historian::open_alarms(const std::string& pump_id) {
   auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE pump_id = ? AND state <> 'normal' ORDER BY rule");
   s.bind(1, pump_id);
-  std::vector<AlarmRecord> out;
-  while (s.step()) out.push_back(read_alarm_row(s));
-  return out;
+  return all_rows(s, read_alarm_row);
 }
 
 std::vector<AlarmRecord> Historian::expired_shelves(const std::string& time) {
   auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE state = 'shelved' AND shelved_until <= ? ORDER BY alarm_id");
   s.bind(1, time);
-  std::vector<AlarmRecord> out;
-  while (s.step()) out.push_back(read_alarm_row(s));
-  return out;
+  return all_rows(s, read_alarm_row);
 }
 
 std::vector<AlarmEvent> Historian::alarm_history(std::int64_t alarm_id) {
   auto& s = impl_->stmt("SELECT " AMBDIAG_EVENT_COLUMNS " FROM alarm_events WHERE alarm_id = ? ORDER BY seq");
   s.bind(1, alarm_id);
-  std::vector<AlarmEvent> out;
-  while (s.step()) out.push_back(read_event_row(s));
-  return out;
+  return all_rows(s, read_event_row);
 }
 
 std::vector<AlarmEvent> Historian::alarm_events(std::int64_t after_seq, int limit) {
   if (limit < 1) throw InputError("alarm_events: limit must be >= 1");
   auto& s = impl_->stmt("SELECT " AMBDIAG_EVENT_COLUMNS " FROM alarm_events WHERE seq > ? ORDER BY seq LIMIT ?");
   s.bind(1, after_seq).bind(2, std::int64_t{limit});
-  std::vector<AlarmEvent> out;
-  while (s.step()) out.push_back(read_event_row(s));
-  return out;
+  return all_rows(s, read_event_row);
 }
 
 std::vector<AlarmEvent> Historian::alarm_events_between(const std::string& from, const std::string& to) {
   auto& s = impl_->stmt("SELECT " AMBDIAG_EVENT_COLUMNS " FROM alarm_events WHERE time >= ? AND time < ? ORDER BY seq");
   s.bind(1, from).bind(2, to);
-  std::vector<AlarmEvent> out;
-  while (s.step()) out.push_back(read_event_row(s));
-  return out;
+  return all_rows(s, read_event_row);
 }
 
 std::int64_t Historian::last_alarm_seq() {
@@ -272,9 +268,7 @@ std::optional<AlarmCursor> Historian::find_alarm_cursor(const std::string& pump_
 std::vector<AlarmCursor> Historian::list_alarm_cursors() {
   auto& s = impl_->stmt(
       "SELECT pump_id, started_at, run_id, model_version, reference_version, last_valid_at FROM alarm_cursors ORDER BY pump_id");
-  std::vector<AlarmCursor> out;
-  while (s.step()) out.push_back(read_cursor_row(s));
-  return out;
+  return all_rows(s, read_cursor_row);
 }
 
 std::optional<RunInfo> Historian::next_run_for_alarms(const std::string& pump_id,
