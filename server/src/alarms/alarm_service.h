@@ -6,7 +6,7 @@
 // serialises them with this one.
 #pragma once
 
-#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>

@@ -1,7 +1,7 @@
 // Alarms (rest.md "Alarms"; docs/service.md "Alarms"): the list, one alarm
 // and its history, the fleet's journal by cursor, the KPIs, what operators
 // and engineers do to alarms, and each pump's rules.
-#include <limits>
+#include <algorithm>
 
 #include "alarms/alarm_evaluator.h"
 #include "alarms/alarm_kpis.h"
