@@ -48,6 +48,7 @@ TEST_F(FleetTest, OneSecondMachinePumpDevelopsAWornPiston) {
   const Counts c = check(runs);
   EXPECT_EQ(c.healthy, 3);
   EXPECT_EQ(c.faulty_clear, 1);
+  check_alarms(runs);
 
   // The alarm: fault.balance_piston_wear on the worn run (1.5 x: medium,
   // docs/service.md), none from the healthy ones.

@@ -31,9 +31,9 @@ TEST(AlarmRules, DefaultsHoldEveryRuleRestMdNames) {
   EXPECT_EQ(s.find("mode.x.zeta")->id, "mode.*.zeta");
   EXPECT_DOUBLE_EQ(s.speed_band, 0.05);
   const AlarmRule* piston = s.find("fault.balance_piston_wear");
-  ASSERT_EQ(piston->levels.size(), 3u);
-  EXPECT_EQ(piston->levels[2].severity, Severity::critical);
-  EXPECT_DOUBLE_EQ(piston->levels[2].raise, 2.0);
+  ASSERT_EQ(piston->levels.size(), 4u);
+  EXPECT_EQ(piston->levels[3].severity, Severity::critical);
+  EXPECT_DOUBLE_EQ(piston->levels[3].raise, 2.0);
   EXPECT_EQ(piston->latch, Severity::critical);
   // The JSON round trip gives the same set.
   EXPECT_EQ(rule_set_from_json(s.to_json(), "").to_json(), s.to_json());

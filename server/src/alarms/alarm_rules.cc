@@ -255,26 +255,30 @@ json default_rule_set_json() {
   // the detection test (docs/diagnosis.md section 8). The fault rules below
   // name a fault on the run itself.
   rules.push_back(rule_json("detection", json::array({level(S::medium, 1.0)}), 0.8, 3, 3, 3, std::nullopt));
-  // Fault parameters, by the diagnosis' best-ranked fault. Clearance factors
-  // after the usual renewal practice for annular seals: renew at 2x the
-  // design clearance (critical, latched), plan at 1.6x, watch from 1.3x.
+  // Fault parameters, by the diagnosis' best-ranked fault. A fault alarm
+  // comes on the first run detection fires on and the diagnosis names the
+  // fault (its lowest level sits just past nominal: the fault is already
+  // told apart from the normal drift there), and escalates as it grows:
+  // clearance factors after the usual renewal practice for annular seals
+  // (watch from 1.3 x the design clearance, plan at 1.6 x, renew at 2 x,
+  // critical and latched).
   for (const char* seal : {"balance_piston_wear", "impeller_seal_wear"})
     rules.push_back(fault_rule(seal, "clearance_factor", "above",
-                               json::array({level(S::medium, 1.3), level(S::high, 1.6), level(S::critical, 2.0)}), 1.2,
-                               S::critical));
-  // A seal running dry keeps a share of its fluid stiffness: half is severe.
-  rules.push_back(fault_rule("dry_run", "fluid_factor", "below", json::array({level(S::high, 0.7), level(S::critical, 0.4)}),
-                             0.85, S::critical));
+                               json::array({level(S::low, 1.1), level(S::medium, 1.3), level(S::high, 1.6), level(S::critical, 2.0)}),
+                               1.05, S::critical));
+  // A seal running dry keeps a share of its fluid stiffness: under half is critical.
+  rules.push_back(fault_rule("dry_run", "fluid_factor", "below",
+                             json::array({level(S::medium, 0.9), level(S::high, 0.7), level(S::critical, 0.4)}), 0.95, S::critical));
   // A crack or a loose shaft nut: a bending stiffness loss of 10 % is high,
   // 25 % critical and latched (a crack grows).
-  rules.push_back(fault_rule("rotor_crack", "EI_factor", "below", json::array({level(S::high, 0.9), level(S::critical, 0.75)}),
-                             0.95, S::high));
+  rules.push_back(fault_rule("rotor_crack", "EI_factor", "below",
+                             json::array({level(S::medium, 0.97), level(S::high, 0.9), level(S::critical, 0.75)}), 0.98, S::high));
   rules.push_back(fault_rule("shaft_nut_loosening", "joint_factor", "below",
-                             json::array({level(S::medium, 0.9), level(S::high, 0.75)}), 0.95, S::high));
+                             json::array({level(S::low, 0.97), level(S::medium, 0.9), level(S::high, 0.75)}), 0.98, S::high));
   // Sensor and actuator gains: |gain - 1|.
   for (const char* dev : {"sensor_fault", "actuator_fault"})
-    rules.push_back(fault_rule(dev, "gain", "above", json::array({level(S::medium, 0.1), level(S::high, 0.3)}), 0.05,
-                               std::nullopt, 1.0));
+    rules.push_back(fault_rule(dev, "gain", "above", json::array({level(S::low, 0.03), level(S::medium, 0.1), level(S::high, 0.3)}),
+                               0.02, std::nullopt, 1.0));
   // Labelled modes against the reference runs' scatter. Not calibrated on
   // healthy fleets the way detection is (an sd from three reference runs
   // is rough, and seal coefficients move modes with speed): wide limits and
