@@ -63,5 +63,7 @@ void add_trend_routes(RouteTable& t);
 // the Grafana data source under /api/v1/grafana (grafana_routes.cc).
 void add_grafana_routes(RouteTable& t);
 // openapi.json, metrics, events: service_routes.h (they need the server's state).
+// alarms, their journal, KPIs and each pump's alarm rules (alarm_routes.cc).
+void add_alarm_routes(RouteTable& t);
 
 }  // namespace ambdiag::server::detail
