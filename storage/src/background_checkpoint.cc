@@ -45,21 +45,20 @@ CheckpointStats BackgroundCheckpoint::stats() const {
 }
 
 void BackgroundCheckpoint::on_durable(std::function<void(std::uint64_t)> listener) {
-  std::lock_guard lock(mu_);
+  std::lock_guard lock(listener_mu_);
   listener_ = std::move(listener);
 }
 
 void BackgroundCheckpoint::made_durable(std::uint64_t through) {
-  std::function<void(std::uint64_t)> listener;
   {
     std::lock_guard lock(mu_);
     if (through <= durable_.load()) return;
     durable_ = through;
     // Commits after `through` began no earlier than now: their clock starts here.
     undurable_since_ = committed_.load() > through ? std::optional(Clock::now()) : std::nullopt;
-    listener = listener_;
   }
-  if (listener) listener(through);
+  std::lock_guard lock(listener_mu_);
+  if (listener_) listener_(durable_.load());
 }
 
 // Runs in the writer's thread, right after its commit.

@@ -59,6 +59,7 @@ class BackgroundCheckpoint {
   bool wanted_ = false, stop_ = false;
   std::optional<Clock::time_point> undurable_since_ = Clock::now();
   CheckpointStats stats_;
+  std::mutex listener_mu_;  // held while the listener runs: on_durable() waits for a call in progress
   std::function<void(std::uint64_t)> listener_;
   std::thread thread_;
 };
