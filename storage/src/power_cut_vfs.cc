@@ -8,10 +8,12 @@
 #include "ambdiag/storage/power_cut.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sqlite3.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -50,6 +52,15 @@ struct State {
 State& state() {
   static State s;
   return s;
+}
+
+std::atomic<bool> g_signalled{false};
+extern "C" void on_cut_signal(int) { g_signalled = true; }
+
+// Under s.mu, before a write or fsync: is this the moment?
+bool due(State& s, Plan::Count what, std::uint64_t n) {
+  if (s.plan.count == Plan::Count::signal) return g_signalled.load();
+  return s.plan.count == what && n == s.plan.at;
 }
 
 struct ShimFile {
@@ -123,7 +134,7 @@ int x_write(sqlite3_file* f, const void* buf, int n, sqlite3_int64 off) {
   State& s = state();
   std::lock_guard lock(s.mu);
   ++s.writes;
-  if (s.plan.count == Plan::Count::writes && s.writes == s.plan.at) cut(s);
+  if (due(s, Plan::Count::writes, s.writes)) cut(s);
   Op op;
   op.offset = off;
   op.before = read_range(p->real, off, std::min<sqlite3_int64>(off + n, size_of(p->real)));
@@ -151,7 +162,7 @@ int x_sync(sqlite3_file* f, int flags) {
   State& s = state();
   std::lock_guard lock(s.mu);
   ++s.syncs;
-  if (s.plan.count == Plan::Count::syncs && s.syncs == s.plan.at) cut(s);
+  if (due(s, Plan::Count::syncs, s.syncs)) cut(s);
   const int rc = p->real->pMethods->xSync(p->real, flags);
   if (rc == SQLITE_OK) {
     FileState& st = s.files[*p->path];
@@ -220,11 +231,17 @@ int x_delete(sqlite3_vfs*, const char* name, int sync_dir) {
 }  // namespace
 
 void install(const Plan& plan) {
-  if (plan.count != Plan::Count::none && plan.at == 0)
+  if ((plan.count == Plan::Count::writes || plan.count == Plan::Count::syncs) && plan.at == 0)
     throw std::invalid_argument("power_cut::install: the cut needs a count >= 1");
   State& s = state();
   std::lock_guard lock(s.mu);
   s.plan = plan;
+  if (plan.count == Plan::Count::signal) {
+    struct sigaction sa {};
+    sa.sa_handler = on_cut_signal;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(SIGUSR2, &sa, nullptr);
+  }
   if (s.installed) return;
   s.base = sqlite3_vfs_find(nullptr);
   s.vfs = *s.base;  // the unix VFS's own calls (paths, time, randomness) as they are
@@ -246,13 +263,19 @@ void install_from_env() {
   const std::string kind = text.substr(0, colon);
   if (kind == "track" && colon == std::string::npos) {
     plan.count = Plan::Count::none;
+    std::atexit([] {
+      std::fprintf(stderr, "ambdiag: power-cut VFS saw %llu writes and %llu fsyncs of the database files\n",
+                   static_cast<unsigned long long>(writes_seen()), static_cast<unsigned long long>(syncs_seen()));
+    });
+  } else if (kind == "signal" && colon == std::string::npos) {
+    plan.count = Plan::Count::signal;
   } else if ((kind == "writes" || kind == "syncs") && colon != std::string::npos) {
     plan.count = kind == "writes" ? Plan::Count::writes : Plan::Count::syncs;
     char* end = nullptr;
     plan.at = std::strtoull(text.c_str() + colon + 1, &end, 10);
     if (*end || plan.at == 0) throw std::invalid_argument("AMBDIAG_POWER_CUT: the count must be an integer >= 1");
   } else {
-    throw std::invalid_argument("AMBDIAG_POWER_CUT: must be track, writes:N or syncs:N, not '" + text + "'");
+    throw std::invalid_argument("AMBDIAG_POWER_CUT: must be track, signal, writes:N or syncs:N, not '" + text + "'");
   }
   if (const char* seed = std::getenv("AMBDIAG_POWER_CUT_SEED"); seed && *seed) {
     char* end = nullptr;

@@ -12,7 +12,10 @@
 // opens its first connection:
 //   AMBDIAG_POWER_CUT=writes:N  cut just before the N-th write (counted over
 //   AMBDIAG_POWER_CUT=syncs:N   all tracked files of the process), or fsync
-//   AMBDIAG_POWER_CUT=track     the VFS without a cut (a baseline)
+//   AMBDIAG_POWER_CUT=signal    cut at the first write or fsync after SIGUSR2
+//                               (a test picks the moment, e.g. while a job runs)
+//   AMBDIAG_POWER_CUT=track     the VFS without a cut (a baseline); prints the
+//                               writes and fsyncs seen when the process exits
 //   AMBDIAG_POWER_CUT_SEED=S    keep a random half of the unsynced writes
 // Tests in one process may call install() instead, before opening.
 #pragma once
@@ -25,7 +28,7 @@ namespace ambdiag::storage::power_cut {
 inline constexpr int kExitCode = 86;  // the process ended by a simulated power cut
 
 struct Plan {
-  enum class Count { none, writes, syncs };
+  enum class Count { none, writes, syncs, signal };
   Count count = Count::none;
   std::uint64_t at = 0;                  // the N-th write or fsync (1-based)
   std::optional<std::uint64_t> seed;     // keep a seeded random subset of the unsynced writes
@@ -33,7 +36,9 @@ struct Plan {
 
 // Registers the VFS as the process' default (once) and sets the plan; every
 // connection opened afterwards goes through it. Throws std::invalid_argument
-// for a plan with count != none and at == 0.
+// for a plan counting writes or syncs with at == 0. Count::signal installs a
+// SIGUSR2 handler (it only sets a flag; the cut happens in the next write or
+// fsync of a tracked file).
 void install(const Plan& plan);
 // Reads AMBDIAG_POWER_CUT and AMBDIAG_POWER_CUT_SEED; installs if set.
 // Throws std::invalid_argument naming the variable for a bad value.
