@@ -279,6 +279,14 @@ class PowerCutTest : public FleetTest {
     server->signal(SIGTERM);
     EXPECT_EQ(server->wait(30s), 0) << server->log();
   }
+
+  // `points` cuts during analysis jobs, each after a random delay (seeded).
+  CutTally cut_jobs(int points, unsigned seed) {
+    std::mt19937_64 rng(seed);
+    CutTally t;
+    for (int point = 1; point <= points && !::testing::Test::HasFatalFailure(); ++point) cut_during_job(point, rng, t);
+    return t;
+  }
 };
 
 }  // namespace ambdiag::testing

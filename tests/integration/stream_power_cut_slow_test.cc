@@ -15,9 +15,7 @@ TEST_F(PowerCutTest, BlocksAcknowledgedDurableSurviveCutsAtManyPointsWhileFourAg
 }
 
 TEST_F(PowerCutTest, CutsAtRandomMomentsOfAnalysisJobsLeaveEveryJobDoneOnce) {
-  std::mt19937_64 rng(2027);
-  CutTally t;
-  for (int point = 1; point <= 5 && !HasFatalFailure(); ++point) cut_during_job(point, rng, t);
+  const CutTally t = cut_jobs(5, 2027);
   t.print("power cut during analysis jobs (slow)");
   EXPECT_EQ(t.cut, 5);
   EXPECT_EQ(t.jobs_duplicated, 0);

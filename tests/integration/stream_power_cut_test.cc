@@ -15,9 +15,7 @@ TEST_F(PowerCutTest, BlocksAcknowledgedDurableSurviveACutWhileThreeAgentsStream)
 }
 
 TEST_F(PowerCutTest, ACutDuringAnAnalysisJobLeavesEveryJobDoneOnce) {
-  std::mt19937_64 rng(11);
-  CutTally t;
-  cut_during_job(1, rng, t);
+  const CutTally t = cut_jobs(1, 11);
   t.print("power cut during an analysis job (fast)");
   EXPECT_EQ(t.cut, 1);
   EXPECT_EQ(t.jobs_duplicated, 0);

@@ -163,11 +163,17 @@ void report(const char* what, const Tally& t) {
               static_cast<long long>(t.lost_not_durable));
 }
 
-TEST(PowerCut, CommitsCalledDurableByTheCheckpointsSurviveACut) {
+// Size-triggered checkpoints during the run, and time-triggered ones.
+CheckpointOptions frequent_checkpoints() {
   CheckpointOptions opt;
-  opt.trigger_pages = 256;  // size-triggered checkpoints during the run, and time-triggered ones
+  opt.trigger_pages = 256;
   opt.inline_pages = 4096;
   opt.durable_within = 50ms;
+  return opt;
+}
+
+TEST(PowerCut, CommitsCalledDurableByTheCheckpointsSurviveACut) {
+  const CheckpointOptions opt = frequent_checkpoints();
   const Tally t = cut_at_random_points(opt, power_cut::Plan::Count::writes, 6, 21, false);
   report("checkpoints", t);
   EXPECT_GE(t.cuts, 4);
@@ -178,10 +184,7 @@ TEST(PowerCut, CommitsCalledDurableByTheCheckpointsSurviveACut) {
 }
 
 TEST(PowerCut, DurableCommitsSurviveWhenARandomHalfOfTheUnsyncedWritesReachedTheDisk) {
-  CheckpointOptions opt;
-  opt.trigger_pages = 256;
-  opt.inline_pages = 4096;
-  opt.durable_within = 50ms;
+  const CheckpointOptions opt = frequent_checkpoints();
   const Tally t = cut_at_random_points(opt, power_cut::Plan::Count::writes, 6, 33, true);
   report("checkpoints, random subset", t);
   EXPECT_GE(t.cuts, 4);
