@@ -33,6 +33,15 @@ struct CutTally {
   int64_t committed_lost = 0;    // acknowledged only as committed and missing after the cut: what the cut did take
   int64_t runs_duplicated = 0;   // run rows beyond one per run id, chunks beyond the run's blocks (must be 0)
   int64_t jobs_duplicated = 0;   // jobs beyond one per key, results beyond one per job (must be 0)
+  // Prints the figures and checks what every case must show: enough of the
+  // cut points reached, nothing acknowledged durable lost, nothing twice.
+  void expect_nothing_lost_or_twice(const char* what, int min_cut) const {
+    print(what);
+    EXPECT_GE(cut, min_cut) << what;  // a cut point may lie past the end
+    EXPECT_EQ(blocks_lost, 0) << what;
+    EXPECT_EQ(runs_duplicated, 0) << what;
+    EXPECT_EQ(jobs_duplicated, 0) << what;
+  }
   void print(const char* what) const {
     std::printf("%s: %d cut points tried, %d reached, %lld blocks acknowledged durable before a cut, %lld lost "
                 "(%lld acknowledged only as committed were lost), %lld runs duplicated, %lld jobs duplicated\n",

@@ -157,10 +157,15 @@ Tally cut_at_random_points(const CheckpointOptions& opt, power_cut::Plan::Count 
   return t;
 }
 
-void report(const char* what, const Tally& t) {
+// Prints the tally and checks what every case must show: enough cuts
+// reached, chunks called durable before them, none of those lost.
+void expect_no_durable_loss(const char* what, const Tally& t, int min_cuts) {
   std::printf("%s: %d cuts, %lld chunks acknowledged durable, %lld of them lost, %lld committed-only chunks lost\n",
               what, t.cuts, static_cast<long long>(t.durable_chunks), static_cast<long long>(t.lost_durable),
               static_cast<long long>(t.lost_not_durable));
+  EXPECT_GE(t.cuts, min_cuts) << what;
+  EXPECT_GT(t.durable_chunks, 0) << what;
+  EXPECT_EQ(t.lost_durable, 0) << what;
 }
 
 // Size-triggered checkpoints during the run, and time-triggered ones.
@@ -175,10 +180,7 @@ CheckpointOptions frequent_checkpoints() {
 TEST(PowerCut, CommitsCalledDurableByTheCheckpointsSurviveACut) {
   const CheckpointOptions opt = frequent_checkpoints();
   const Tally t = cut_at_random_points(opt, power_cut::Plan::Count::writes, 6, 21, false);
-  report("checkpoints", t);
-  EXPECT_GE(t.cuts, 4);
-  EXPECT_GT(t.durable_chunks, 0);
-  EXPECT_EQ(t.lost_durable, 0);
+  expect_no_durable_loss("checkpoints", t, 4);
   // The simulation bites: commits not yet synced are lost at some cut.
   EXPECT_GT(t.lost_not_durable, 0);
 }
@@ -186,20 +188,14 @@ TEST(PowerCut, CommitsCalledDurableByTheCheckpointsSurviveACut) {
 TEST(PowerCut, DurableCommitsSurviveWhenARandomHalfOfTheUnsyncedWritesReachedTheDisk) {
   const CheckpointOptions opt = frequent_checkpoints();
   const Tally t = cut_at_random_points(opt, power_cut::Plan::Count::writes, 6, 33, true);
-  report("checkpoints, random subset", t);
-  EXPECT_GE(t.cuts, 4);
-  EXPECT_GT(t.durable_chunks, 0);
-  EXPECT_EQ(t.lost_durable, 0);
+  expect_no_durable_loss("checkpoints, random subset", t, 4);
 }
 
 TEST(PowerCut, WithSynchronousFullEveryCommitIsDurableAtOnce) {
   CheckpointOptions opt;
   opt.sync_commits = true;
   const Tally t = cut_at_random_points(opt, power_cut::Plan::Count::syncs, 4, 45, false);
-  report("synchronous=FULL", t);
-  EXPECT_GE(t.cuts, 3);
-  EXPECT_GT(t.durable_chunks, 0);
-  EXPECT_EQ(t.lost_durable, 0);
+  expect_no_durable_loss("synchronous=FULL", t, 3);
   EXPECT_EQ(t.lost_not_durable, 0);  // none was committed without being durable
 }
 
