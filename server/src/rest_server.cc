@@ -94,6 +94,7 @@ struct RestServer::Impl {
     detail::add_read_routes(routes, started);
     detail::add_analysis_routes(routes);
     detail::add_service_routes(routes, service);
+    detail::add_web_routes(routes);
     register_metrics();
   }
 

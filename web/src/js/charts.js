@@ -1,0 +1,141 @@
+// uPlot charts (web/node_modules/uplot, loaded as the global uPlot by
+// index.html): trends over time with a reference band and limits, and Bode
+// plots of measured vs model FRFs. Lines are greys and dark blues; colour is
+// kept for what is abnormal (limits in red, the band in a light grey).
+const INK = ['#1b1b1b', '#1f5fa8', '#5a5a5a', '#6b3fa0', '#2e7d6b', '#8a5a00'];
+
+const width = (el) => Math.max(320, el.clientWidth || 900);
+
+// A band drawn under the series: the reference mean +- 2 sd, and the alarm
+// limits as red dashed lines, from the series' `reference` and `limits`.
+function bandPlugin(band, limits) {
+  return {
+    hooks: {
+      drawClear: [
+        (u) => {
+          if (!band) return;
+          const { ctx } = u;
+          const y0 = u.valToPos(band.lo, 'y', true);
+          const y1 = u.valToPos(band.hi, 'y', true);
+          ctx.save();
+          ctx.fillStyle = 'rgba(120,120,120,0.18)';
+          ctx.fillRect(u.bbox.left, Math.min(y0, y1), u.bbox.width, Math.abs(y1 - y0));
+          const ym = u.valToPos(band.mean, 'y', true);
+          ctx.strokeStyle = '#8c8c8c';
+          ctx.setLineDash([2, 3]);
+          ctx.beginPath();
+          ctx.moveTo(u.bbox.left, ym);
+          ctx.lineTo(u.bbox.left + u.bbox.width, ym);
+          ctx.stroke();
+          ctx.restore();
+        },
+      ],
+      draw: [
+        (u) => {
+          if (!limits?.length) return;
+          const { ctx } = u;
+          ctx.save();
+          ctx.strokeStyle = '#d40000';
+          ctx.fillStyle = '#d40000';
+          ctx.setLineDash([6, 4]);
+          ctx.font = `${11 * devicePixelRatio}px sans-serif`;
+          for (const l of limits) {
+            const y = u.valToPos(l.value, 'y', true);
+            if (y < u.bbox.top || y > u.bbox.top + u.bbox.height) continue;
+            ctx.beginPath();
+            ctx.moveTo(u.bbox.left, y);
+            ctx.lineTo(u.bbox.left + u.bbox.width, y);
+            ctx.stroke();
+            ctx.fillText(l.label, u.bbox.left + 4, y - 3);
+          }
+          ctx.restore();
+        },
+      ],
+    },
+  };
+}
+
+// The numeric limits found in a series' `limits` (the alarm side's shape:
+// objects or arrays with raise / clear / high / low values).
+export function limitLines(limits) {
+  const out = [];
+  const visit = (v, name) => {
+    if (typeof v === 'number' && Number.isFinite(v)) out.push({ value: v, label: name });
+    else if (Array.isArray(v)) v.forEach((x, i) => visit(x, x?.rule || x?.name || name || `limit ${i + 1}`));
+    else if (v && typeof v === 'object')
+      for (const [k, x] of Object.entries(v)) if (!['rule', 'name', 'severity', 'unit'].includes(k)) visit(x, (name ? name + ' ' : '') + k);
+  };
+  visit(limits, '');
+  return out;
+}
+
+// One trend chart: time (s) and value arrays, optional min/max envelope
+// (buckets), the reference band and limits; `onPoint(i)` on a click.
+export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, onPoint, height = 170 }) {
+  const series = [{}, { label: title, stroke: INK[0], width: 1.25, points: { show: t.length < 400, size: 5, fill: '#1b1b1b' } }];
+  const data = [t, v];
+  if (lo && hi) {
+    series.push({ label: 'min', stroke: '#9a9a9a', width: 1 }, { label: 'max', stroke: '#9a9a9a', width: 1 });
+    data.push(lo, hi);
+  }
+  const yr = (u, min, max) => {
+    let a = min, b = max;
+    if (band) (a = Math.min(a, band.lo)), (b = Math.max(b, band.hi));
+    for (const l of limits || []) (a = Math.min(a, l.value)), (b = Math.max(b, l.value));
+    if (!(b > a)) (a -= 1e-9 + Math.abs(a) * 0.1), (b += 1e-9 + Math.abs(b) * 0.1);
+    const pad = (b - a) * 0.08;
+    return [a - pad, b + pad];
+  };
+  const opts = {
+    title: unit ? `${title} [${unit}]` : title,
+    width: width(el),
+    height,
+    cursor: { sync: sync ? { key: sync } : undefined, drag: { x: true, y: false, setScale: true } },
+    scales: { x: { time: true }, y: { range: yr } },
+    axes: [{ stroke: '#444', grid: { stroke: '#d6d6d6' } }, { stroke: '#444', grid: { stroke: '#d6d6d6' }, size: 70 }],
+    series,
+    plugins: [bandPlugin(band, limits)],
+  };
+  const u = new uPlot(opts, data, el);
+  if (onPoint)
+    u.over.addEventListener('click', () => {
+      const i = u.cursor.idx;
+      if (i !== null && i !== undefined) onPoint(i);
+    });
+  return u;
+}
+
+// Bode plot of entries: each {label, f (Hz), mag, phase_deg, model_mag?,
+// model_phase_deg?} on one frequency grid. Magnitude on a log axis.
+export function bodeCharts(magEl, phaseEl, f, entries, { logX = false, height = 260, sync = 'bode' } = {}) {
+  const mk = (el, key, ylabel, ylog) => {
+    const series = [{}];
+    const data = [f];
+    entries.forEach((e, i) => {
+      const stroke = INK[i % INK.length];
+      series.push({ label: e.label + ' measured', stroke, width: 1.25 });
+      data.push(key === 'mag' ? e.mag : e.phase);
+      if (e.model_mag) {
+        series.push({ label: e.label + ' model', stroke, width: 1.25, dash: [6, 4] });
+        data.push(key === 'mag' ? e.model_mag : e.model_phase);
+      }
+    });
+    return new uPlot(
+      {
+        width: width(el),
+        height,
+        cursor: { sync: { key: sync }, drag: { x: true, y: false } },
+        scales: { x: { time: false, distr: logX ? 3 : 1 }, y: ylog ? { distr: 3 } : {} },
+        axes: [
+          { stroke: '#444', grid: { stroke: '#d6d6d6' }, label: 'frequency [Hz]' },
+          { stroke: '#444', grid: { stroke: '#d6d6d6' }, label: ylabel, size: 70, values: ylog ? (u, vals) => vals.map((v) => (v ? v.toExponential(0) : '')) : undefined },
+        ],
+        series,
+        legend: { show: key === 'mag' },
+      },
+      data,
+      el,
+    );
+  };
+  return [mk(magEl, 'mag', '|H| [m/N]', true), mk(phaseEl, 'phase', 'phase [°]', false)];
+}
