@@ -50,14 +50,14 @@ try {
     await page.screenshot({ path: `${shots}/login.png` });
     await page.fill('#token', tokens.operator);
     await page.click('#sign-in');
-    await page.waitForSelector('#fleet-table tbody tr');
+    await page.waitForSelector('#fleet-table tbody tr[data-pump]');
     // Kept for this tab only.
     assert.equal(await page.evaluate(() => localStorage.length), 0);
     assert.equal(await page.evaluate(() => sessionStorage.getItem('ambdiag.token')), tokens.operator);
   });
 
   await step('the fleet view lists every pump with its health, the faulty one abnormal', async () => {
-    const rows = await page.$$eval('#fleet-table tbody tr', (trs) =>
+    const rows = await page.$$eval('#fleet-table tbody tr[data-pump]', (trs) =>
       trs.map((tr) => ({ pump: tr.dataset.pump, health: tr.querySelector('[data-health]').dataset.health, text: tr.innerText })),
     );
     assert.deepEqual(rows.map((r) => r.pump).sort(), [...pumps].sort());
@@ -69,7 +69,7 @@ try {
     // Abnormal first by default; the filter narrows.
     assert.equal(rows[0].pump, faulty);
     await page.fill('#fleet-filter', pumps.find((p) => p !== faulty));
-    assert.equal(await page.$$eval('#fleet-table tbody tr', (t) => t.length), 1);
+    assert.equal(await page.$$eval('#fleet-table tbody tr[data-pump]', (t) => t.length), 1);
     await page.fill('#fleet-filter', '');
     await page.screenshot({ path: `${shots}/fleet.png`, fullPage: true });
   });
@@ -139,7 +139,7 @@ try {
 
     await step('live: a pump registered over REST appears in the open fleet view without a reload', async () => {
       await page.goto(`${url}/#/fleet`);
-      await page.waitForSelector('#fleet-table tbody tr');
+      await page.waitForSelector('#fleet-table tbody tr[data-pump]');
       await page.waitForSelector('#live.on');
       const plant = await (await fetch(`${url}/api/v1/pumps/${encodeURIComponent(faulty)}/model`, { headers: { Authorization: 'Bearer ' + tokens.viewer } })).text();
       const r = await fetch(`${url}/api/v1/pumps/LIVE-1/model`, { method: 'PUT', headers: { Authorization: 'Bearer ' + tokens.engineer }, body: plant });
