@@ -15,7 +15,8 @@ class WebUiTest : public FleetTest {
   // Skips (naming what is missing) where node, chromium or web/node_modules
   // are not installed: deploy/install-deps.sh installs all three.
   void require_browser() {
-    if (std::string(AMBDIAG_NODE).empty()) GTEST_SKIP() << "node not found at configure time (deploy/install-deps.sh)";
+    if (std::string(AMBDIAG_NODE).empty())
+      GTEST_SKIP() << "node not found at configure time (deploy/install-deps.sh)";
     if (!fs::exists("/usr/bin/chromium") && !std::getenv("AMBDIAG_CHROMIUM"))
       GTEST_SKIP() << "no /usr/bin/chromium (deploy/install-deps.sh installs Debian's)";
     if (!fs::exists(fs::path(AMBDIAG_WEB_SOURCE) / "node_modules/playwright-core"))
@@ -55,7 +56,10 @@ class WebUiTest : public FleetTest {
                  (dir / "browser.log").string());
     const int rc = node.wait(120s);
     std::printf("%s", node.log().c_str());
-    if (rc != 0) ADD_FAILURE() << "browser checks failed (rc " << rc << "):\n" << node.log() << "\n--- server ---\n" << server->log();
+    if (rc != 0)
+      ADD_FAILURE() << "browser checks failed (rc " << rc << "):\n"
+                    << node.log() << "\n--- server ---\n"
+                    << server->log();
     return rc;
   }
 };

@@ -25,7 +25,8 @@ class WebRoutes : public ::testing::Test {
     web_ = dir_ / "web";
     fs::create_directories(web_ / "js");
     write(web_ / "index.html", "<!doctype html><title>ui</title>");
-    write(web_ / "js" / "main.js", "export const x = 1;\n" + std::string(4000, ' ') + "// padding that compresses\n");
+    write(web_ / "js" / "main.js",
+          "export const x = 1;\n" + std::string(4000, ' ') + "// padding that compresses\n");
     write(web_ / "app.css", "body{}");
     write(web_ / "notes.txt", "not a type the UI serves");
     write(web_ / ".hidden.js", "hidden");
@@ -94,9 +95,9 @@ TEST_F(WebRoutes, CompressesTextWhenTheClientAcceptsGzip) {
 TEST_F(WebRoutes, NothingOutsideTheFolderOrHiddenOrOfAnotherTypeIsServed) {
   start(web_.string());
   for (const std::string path :
-       {"/ui/../secret.js", "/ui/%2e%2e/secret.js", "/ui/..%2Fsecret.js", "/ui/js/../../secret.js", "/ui/.hidden.js",
-        "/ui/link.js", "/ui/notes.txt", "/ui/js", "/ui/missing.js", "/ui/js%2Fmain.js%00.css", "/ui/a%5Cb.js",
-        "/ui/%2Fetc%2Fpasswd"}) {
+       {"/ui/../secret.js", "/ui/%2e%2e/secret.js", "/ui/..%2Fsecret.js", "/ui/js/../../secret.js",
+        "/ui/.hidden.js", "/ui/link.js", "/ui/notes.txt", "/ui/js", "/ui/missing.js",
+        "/ui/js%2Fmain.js%00.css", "/ui/a%5Cb.js", "/ui/%2Fetc%2Fpasswd"}) {
     const auto r = get(path);
     ASSERT_TRUE(r) << path;
     EXPECT_TRUE(r->status == 400 || r->status == 404) << path << ": " << r->status << " " << r->body;
@@ -129,7 +130,8 @@ TEST(FindWebDir, FindsTheBuildTreesFolderNextToTheBinary) {
   std::ofstream(root / "share" / "ambdiag" / "web" / "index.html") << "";
   fs::create_directories(root / "bin");
   std::ofstream(root / "bin" / "ambdiag") << "";
-  EXPECT_EQ(find_web_dir((root / "bin" / "ambdiag").string()), fs::canonical(root / "share" / "ambdiag" / "web").string());
+  EXPECT_EQ(find_web_dir((root / "bin" / "ambdiag").string()),
+            fs::canonical(root / "share" / "ambdiag" / "web").string());
   fs::create_directories(root / "web");
   std::ofstream(root / "web" / "index.html") << "";
   EXPECT_EQ(find_web_dir((root / "cli" / "ambdiag").string()), fs::canonical(root / "web").string());

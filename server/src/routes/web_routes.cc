@@ -54,16 +54,19 @@ fs::path web_file(const std::string& dir, const std::string& rel) {
   }
   std::error_code ec;
   const fs::path root = fs::canonical(dir, ec);
-  if (ec) throw NotFoundError("the web UI is not installed: " + dir + " is missing (build it: web/README.md)");
+  if (ec)
+    throw NotFoundError("the web UI is not installed: " + dir + " is missing (build it: web/README.md)");
   const fs::path file = fs::weakly_canonical(root / rel, ec);
   const auto [end, _] = std::mismatch(root.begin(), root.end(), file.begin(), file.end());
-  if (ec || end != root.end() || !fs::is_regular_file(file)) throw NotFoundError("the web UI has no file '" + rel + "'");
+  if (ec || end != root.end() || !fs::is_regular_file(file))
+    throw NotFoundError("the web UI has no file '" + rel + "'");
   return file;
 }
 
 void send_web_file(RouteContext& c, const std::string& rel) {
   if (c.opt.web_dir.empty())
-    throw NotFoundError("the web UI is not installed with this server (ambdiag serve --web-dir DIR; web/README.md)");
+    throw NotFoundError(
+        "the web UI is not installed with this server (ambdiag serve --web-dir DIR; web/README.md)");
   const fs::path file = web_file(c.opt.web_dir, rel);
   const char* type = content_type(file.extension().string());
   if (!type) throw NotFoundError("the web UI has no file '" + rel + "' (not a type it serves)");
@@ -71,8 +74,9 @@ void send_web_file(RouteContext& c, const std::string& rel) {
   if (::stat(file.c_str(), &st) != 0) throw NotFoundError("the web UI has no file '" + rel + "'");
   // Not content-hashed names, so no long max-age: the browser revalidates
   // each time (no-cache) and gets 304 while size and mtime are unchanged.
-  const std::string etag = "\"" + std::to_string(st.st_size) + "-" +
-                           std::to_string(static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec) + "\"";
+  const std::string etag =
+      "\"" + std::to_string(st.st_size) + "-" +
+      std::to_string(static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec) + "\"";
   c.res.set_header("ETag", etag);
   c.res.set_header("Cache-Control", "no-cache");
   c.res.set_header("X-Content-Type-Options", "nosniff");
@@ -92,7 +96,8 @@ void send_web_file(RouteContext& c, const std::string& rel) {
   body << in.rdbuf();
   if (!in) throw NotFoundError("the web UI cannot read '" + rel + "'");
   c.res.status = 200;
-  c.res.set_content(body.str(), type);  // httplib gzips or brotli-encodes text types when the client accepts it
+  c.res.set_content(body.str(),
+                    type);  // httplib gzips or brotli-encodes text types when the client accepts it
 }
 
 // Every pump's view (rest.md's GET /pumps/{id}) and its run summary.
@@ -118,20 +123,39 @@ void get_model_frf(RouteContext& c, const std::string& run_id) {
 
 void add_web_routes(RouteTable& t) {
   using storage::Role;
-  auto& index = t.add({"GET", "/", std::nullopt, "the web UI (no token: its API calls carry one)",
-                       [](RouteContext& c, const PathParams&) { send_web_file(c, "index.html"); }, {}, "text/html"});
-  index.description = "index.html of the UI's folder (ambdiag serve --web-dir; web/README.md); 404 when the UI is not installed.";
-  auto& files = t.add({"GET", "/ui/{path*}", std::nullopt, "a file of the web UI (scripts, styles)",
-                       [](RouteContext& c, const PathParams& p) { send_web_file(c, p.at("path")); }, {}, "text/plain"});
+  auto& index = t.add({"GET",
+                       "/",
+                       std::nullopt,
+                       "the web UI (no token: its API calls carry one)",
+                       [](RouteContext& c, const PathParams&) { send_web_file(c, "index.html"); },
+                       {},
+                       "text/html"});
+  index.description =
+      "index.html of the UI's folder (ambdiag serve --web-dir; web/README.md); 404 when the UI is not "
+      "installed.";
+  auto& files = t.add({"GET",
+                       "/ui/{path*}",
+                       std::nullopt,
+                       "a file of the web UI (scripts, styles)",
+                       [](RouteContext& c, const PathParams& p) { send_web_file(c, p.at("path")); },
+                       {},
+                       "text/plain"});
   files.description =
-      "Served from the UI's folder with ETag and Cache-Control: no-cache (304 on If-None-Match), compressed when the "
-      "client accepts it; names of letters, digits, '.', '_', '-' only (400 otherwise, so no '..'), nothing outside "
+      "Served from the UI's folder with ETag and Cache-Control: no-cache (304 on If-None-Match), compressed "
+      "when the "
+      "client accepts it; names of letters, digits, '.', '_', '-' only (400 otherwise, so no '..'), nothing "
+      "outside "
       "the folder.";
-  t.add({"GET", "/api/v1/fleet", Role::viewer, "every pump's view (as GET /api/v1/pumps/{pump_id}) with its run count, in one reply",
+  t.add({"GET", "/api/v1/fleet", Role::viewer,
+         "every pump's view (as GET /api/v1/pumps/{pump_id}) with its run count, in one reply",
          [](RouteContext& c, const PathParams&) { get_fleet(c); }});
-  t.add({"GET", "/api/v1/runs/{run_id*}/model_frf.csv", Role::viewer,
+  t.add({"GET",
+         "/api/v1/runs/{run_id*}/model_frf.csv",
+         Role::viewer,
          "the model's FRF on the run's grid and entries at its speed (the model version of its analysis)",
-         [](RouteContext& c, const PathParams& p) { get_model_frf(c, p.at("run_id")); }, {}, "text/csv"});
+         [](RouteContext& c, const PathParams& p) { get_model_frf(c, p.at("run_id")); },
+         {},
+         "text/csv"});
 }
 
 }  // namespace ambdiag::server::detail
@@ -143,7 +167,8 @@ std::string find_web_dir(const std::string& exe) {
   const std::filesystem::path bin = std::filesystem::canonical(exe, ec).parent_path();
   if (ec) return "";
   for (const auto& dir : {bin / ".." / "web", bin / ".." / "share" / "ambdiag" / "web"})
-    if (std::filesystem::is_regular_file(dir / "index.html", ec)) return std::filesystem::canonical(dir, ec).string();
+    if (std::filesystem::is_regular_file(dir / "index.html", ec))
+      return std::filesystem::canonical(dir, ec).string();
   return "";
 }
 

@@ -2,7 +2,7 @@
 // state and severity, acknowledge and shelve with a comment, the history of
 // each. alarmTable is shared with the pump view.
 import { get, post, seg, missingRoute } from './api.js';
-import { h, esc, fmtTime, sevHtml, errorBox, toast } from './dom.js';
+import { h, esc, fmtTime, sevHtml, errorBox, toast, debounce } from './dom.js';
 
 const STATES = ['unack_active', 'ack_active', 'unack_rtn', 'shelved', 'suppressed', 'out_of_service', 'normal'];
 const SEVERITIES = ['critical', 'high', 'medium', 'low'];
@@ -145,12 +145,6 @@ export async function alarmsView({ main, crumbs, session }) {
   state.addEventListener('change', () => load().catch((e) => box.replaceChildren(errorBox(e))));
   sev.addEventListener('change', () => load().catch((e) => box.replaceChildren(errorBox(e))));
   await load();
-  let timer = null;
-  return {
-    onEvent() {
-      clearTimeout(timer);
-      timer = setTimeout(() => load().catch(() => {}), 700);
-    },
-    dispose: () => clearTimeout(timer),
-  };
+  const reload = debounce(() => load().catch(() => {}), 700);
+  return { onEvent: reload, dispose: reload.cancel };
 }

@@ -58,3 +58,14 @@ export function toast(msg, ms = 4000) {
 }
 
 export const errorBox = (e) => h('p', { class: 'error' }, e.message || String(e));
+
+// fn after `ms` without another call (live events come in bursts); .cancel().
+export function debounce(fn, ms) {
+  let timer = null;
+  const d = () => {
+    clearTimeout(timer);
+    timer = setTimeout(fn, ms);
+  };
+  d.cancel = () => clearTimeout(timer);
+  return d;
+}

@@ -2,7 +2,7 @@
 // its analysis concluded; sortable and filterable. Rows are rendered as one
 // HTML string (1000 pumps in a few ms) and clicks are delegated.
 import { get, missingRoute } from './api.js';
-import { h, esc, fmtTime, fmtNum, healthHtml, sevHtml } from './dom.js';
+import { h, esc, fmtTime, fmtNum, healthHtml, sevHtml, debounce } from './dom.js';
 
 const ROW_PX = 26; // every row's height (app.css), for the window of rows in the document
 const RANK = { alarm: 3, warning: 2, unknown: 1, ok: 0 };
@@ -173,13 +173,7 @@ export async function fleetView({ main, crumbs }) {
     apply();
   }
   await load();
-  let timer = null;
-  return {
-    // New runs, analyses and alarms: read the fleet again, at most once a second.
-    onEvent() {
-      clearTimeout(timer);
-      timer = setTimeout(() => load().catch(() => {}), 1000);
-    },
-    dispose: () => clearTimeout(timer),
-  };
+  // New runs, analyses and alarms: read the fleet again, at most once a second.
+  const reload = debounce(() => load().catch(() => {}), 1000);
+  return { onEvent: reload, dispose: reload.cancel };
 }

@@ -1,8 +1,8 @@
 // The shell: login, hash routing over the hierarchy fleet -> pump -> run
 // (and the alarm list), the crumbs, and the live event stream that the
 // current view listens to.
-import { token, probe } from './api.js';
-import { $, h, esc, errorBox } from './dom.js';
+import { token, probe, get } from './api.js';
+import { $, esc, errorBox, debounce } from './dom.js';
 import { Live } from './live.js';
 import { fleetView } from './fleet.js';
 import { pumpView } from './pump.js';
@@ -50,7 +50,21 @@ async function route() {
   main.focus();
 }
 
+// The header's badge: alarms not yet acknowledged (where the server has alarms).
+const alarmBadge = debounce(async () => {
+  const el = $('#alarm-count');
+  try {
+    const { alarms } = await get('/api/v1/alarms');
+    const n = alarms.filter((a) => String(a.state).startsWith('unack')).length;
+    el.textContent = n ? `▲ ${n}` : '';
+    el.hidden = n === 0;
+  } catch (_) {
+    el.hidden = true;
+  }
+}, 300);
+
 function showWho() {
+  document.body.classList.toggle('signed-out', session.mode === 'login');
   $('#who').textContent =
     session.mode === 'anonymous' ? 'read-only (no token)' : session.mode === 'token' ? 'signed in' : '';
   $('#logout').hidden = session.mode !== 'token';
@@ -72,7 +86,11 @@ async function start() {
     else route();
     return;
   }
-  live.start(token.get(), (ev) => current?.onEvent?.(ev));
+  live.start(token.get(), (ev) => {
+    current?.onEvent?.(ev);
+    alarmBadge();
+  });
+  alarmBadge();
   if (location.hash === '#/login' || !location.hash) location.hash = '#/fleet';
   else route();
 }

@@ -2,7 +2,7 @@
 // series with the reference band and alarm limits (zoom by dragging, a
 // point opens its run), its runs, model versions and reference.
 import { get, seg, missingRoute } from './api.js';
-import { h, esc, fmtTime, fmtNum, healthHtml, errorBox } from './dom.js';
+import { h, esc, fmtTime, fmtNum, healthHtml, errorBox, debounce } from './dom.js';
 import { trendChart, limitLines } from './charts.js';
 import { alarmTable, fetchAlarms } from './alarms.js';
 
@@ -158,18 +158,14 @@ export async function pumpView({ main, crumbs, session }, pumpId) {
     prognosisSection(pumpId, progBox),
   ]);
   if (!progBox.childElementCount) progBox.append(h('p', { class: 'muted' }, 'No fault parameter with a trend to forecast.'));
-  let timer = null;
+  const reload = debounce(() => {
+    refresh().catch(() => {});
+    trends?.redraw?.().catch(() => {});
+  }, 800);
   return {
-    onEvent(ev) {
-      if (ev.data?.pump_id && ev.data.pump_id !== pumpId) return;
-      clearTimeout(timer);
-      timer = setTimeout(() => {
-        refresh().catch(() => {});
-        trends?.redraw?.().catch(() => {});
-      }, 800);
-    },
+    onEvent: (ev) => (!ev.data?.pump_id || ev.data.pump_id === pumpId) && reload(),
     dispose() {
-      clearTimeout(timer);
+      reload.cancel();
       trends?.dispose?.();
     },
   };
