@@ -46,7 +46,7 @@ function bandPlugin(band, limits) {
             ctx.moveTo(u.bbox.left, y);
             ctx.lineTo(u.bbox.left + u.bbox.width, y);
             ctx.stroke();
-            ctx.fillText(l.label, u.bbox.left + 4, y - 3);
+            ctx.fillText(l.label, u.bbox.left + u.bbox.width - ctx.measureText(l.label).width - 4, y - 3);
           }
           ctx.restore();
         },
@@ -71,7 +71,7 @@ export function limitLines(limits) {
 
 // One trend chart: time (s) and value arrays, optional min/max envelope
 // (buckets), the reference band and limits; `onPoint(i)` on a click.
-export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, onPoint, height = 170 }) {
+export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, onPoint, height = 190 }) {
   const series = [{}, { label: title, stroke: INK[0], width: 1.25, points: { show: t.length < 400, size: 5, fill: '#1b1b1b' } }];
   const data = [t, v];
   if (lo && hi) {
@@ -92,7 +92,7 @@ export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, 
     height,
     cursor: { sync: sync ? { key: sync } : undefined, drag: { x: true, y: false, setScale: true } },
     scales: { x: { time: true }, y: { range: yr } },
-    axes: [{ stroke: '#444', grid: { stroke: '#d6d6d6' } }, { stroke: '#444', grid: { stroke: '#d6d6d6' }, size: 70 }],
+    axes: [{ stroke: '#444', grid: { stroke: '#d6d6d6' } }, { stroke: '#444', grid: { stroke: '#d6d6d6' }, size: 70, space: 18 }],
     series,
     plugins: [bandPlugin(band, limits)],
   };

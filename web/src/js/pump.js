@@ -49,7 +49,25 @@ async function trendsSection(pumpId, box) {
   const pick = h('div', { class: 'series-pick', id: 'series-pick' },
     ...list.map((s) => h('label', { title: s.name }, h('input', { type: 'checkbox', value: s.name, checked: chosen.has(s.name) }), ' ', s.name, s.unit ? ` [${s.unit}]` : '')));
   const charts = h('div', { class: 'charts', id: 'trend-charts' });
-  box.replaceChildren(h('div', { class: 'row' }, range, h('span', { class: 'muted' }, 'drag across a chart to zoom, double-click to reset; click a point to open its run; grey band: reference mean ± 2 sd; red dashed: alarm limits')), pick, charts);
+  // The time range shown: null (the range select) or {from, to} in s. Where
+  // the reply came as min/max buckets, a zoom asks the server again for the
+  // zoomed range, so months narrow down to single runs (as a historian does).
+  let view = null;
+  const iso = (s) => new Date(s * 1000).toISOString().replace(/\.\d+Z$/, 'Z');
+  const pan = (share) => () => {
+    const [a, b] = view ? [view.from, view.to] : plots.length ? [plots[0].scales.x.min, plots[0].scales.x.max] : [0, 0];
+    if (!(b > a)) return;
+    view = { from: a + share * (b - a), to: b + share * (b - a) };
+    draw().catch((e) => charts.replaceChildren(errorBox(e)));
+  };
+  const all = () => ((view = null), draw().catch((e) => charts.replaceChildren(errorBox(e))));
+  box.replaceChildren(
+    h('div', { class: 'row' }, range,
+      h('button', { type: 'button', onclick: pan(-0.5), title: 'earlier' }, '◀'),
+      h('button', { type: 'button', onclick: pan(0.5), title: 'later' }, '▶'),
+      h('button', { type: 'button', onclick: all }, 'whole range'),
+      h('span', { class: 'muted' }, 'drag across a chart to zoom, double-click for the whole range; click a point to open its run; grey band: reference mean ± 2 sd; red dashed: alarm limits')),
+    pick, charts);
   let plots = [];
   async function draw() {
     plots.forEach((p) => p.destroy());
@@ -59,13 +77,21 @@ async function trendsSection(pumpId, box) {
     const q = new URLSearchParams();
     names.forEach((n) => q.append('series', n));
     q.set('max_points', '2000');
-    if (range.value) q.set('from', new Date(Date.now() - range.value * 86400e3).toISOString().replace(/\.\d+Z$/, 'Z'));
-    const reply = await get(`/api/v1/pumps/${seg(pumpId)}/trends?${q}`);
+    if (view) q.set('from', iso(view.from)), q.set('to', iso(view.to));
+    else if (range.value) q.set('from', iso(Date.now() / 1000 - range.value * 86400));
+    // %20, not URLSearchParams' "+", for the spaces of mode labels.
+    const reply = await get(`/api/v1/pumps/${seg(pumpId)}/trends?${q.toString().replace(/\+/g, '%20')}`);
     charts.replaceChildren();
+    const bucketed = reply.series.some((s) => s.points?.[0]?.min !== undefined);
     const syncX = (u) => {
       const { min, max } = u.scales.x;
       for (const p of plots) if (p !== u && (p.scales.x.min !== min || p.scales.x.max !== max)) p.setScale('x', { min, max });
     };
+    const zoomed = debounce(() => {
+      const { min, max } = plots[0].scales.x;
+      view = { from: min, to: max };
+      draw().catch((e) => charts.replaceChildren(errorBox(e)));
+    }, 300);
     for (const s of reply.series) {
       const d = seriesData(s);
       const el = h('div', { class: 'chart', 'data-series': s.name });
@@ -79,11 +105,13 @@ async function trendsSection(pumpId, box) {
         onPoint: d.runs ? (i) => d.runs[i] && (location.hash = '#/run/' + encodeURIComponent(d.runs[i])) : null,
       });
       u.hooks.setScale = [(uu, key) => key === 'x' && syncX(uu)];
+      u.hooks.setSelect = [(uu) => bucketed && uu.select.width > 2 && zoomed()];
+      u.over.addEventListener('dblclick', () => view && all());
       plots.push(u);
     }
   }
   pick.addEventListener('change', () => draw().catch((e) => charts.replaceChildren(errorBox(e))));
-  range.addEventListener('change', () => draw().catch((e) => charts.replaceChildren(errorBox(e))));
+  range.addEventListener('change', all);
   await draw();
   return { redraw: draw, dispose: () => plots.forEach((p) => p.destroy()) };
 }
