@@ -208,6 +208,15 @@ async function explainReport(j) {
       ['unexplained', String((r.unexplained || []).length)],
     ]),
   ];
+  if (Array.isArray(r.story) && r.story.length) parts.push(h('ul', { class: 'story' }, ...r.story.map((line) => h('li', {}, line))));
+  if (r.updated_parameters?.length) {
+    const t = h('table', { id: 'updated-parameters' });
+    t.innerHTML =
+      '<thead><tr><th>model parameter</th><th class="num">from</th><th class="num">to</th></tr></thead><tbody>' +
+      r.updated_parameters.map((u) => `<tr><td>${esc(u.path)}</td><td class="num">${fmtNum(u.from, 5)}</td><td class="num">${fmtNum(u.to, 5)}</td></tr>`).join('') +
+      '</tbody>';
+    parts.push(h('h2', {}, 'Parameters corrected'), t);
+  }
   if (r.explanations?.length) {
     const t = h('table', { id: 'explanations' });
     t.innerHTML =
