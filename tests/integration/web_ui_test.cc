@@ -1,74 +1,18 @@
-// The web UI in a real browser (issue 20): a real `ambdiag serve` with real
-// agents (fleet_fixture.h: two simulated pumps, one whose balance piston
-// wears), then web/tests/ui_test.mjs drives Debian's headless chromium
-// through playwright-core against it: the fleet lists the pumps, the faulty
-// one shows its fault and alarm, an operator acknowledges it in the page and
-// the REST state changes, the run view draws the FRF, a new pump appears
-// live. Its screenshots go to build/web-screenshots/.
-#include "fleet_fixture.h"
+// The web UI in a real browser (issue 20; web_ui_fixture.h): the fleet
+// lists the pumps, the faulty one shows its fault and alarm, an operator
+// acknowledges it in the page and the REST state changes, the run view
+// draws the FRF, a new pump appears live.
+#include "web_ui_fixture.h"
 
 namespace ambdiag::testing {
 namespace {
 
-class WebUiTest : public FleetTest {
- protected:
-  // Skips (naming what is missing) where node, chromium or web/node_modules
-  // are not installed: deploy/install-deps.sh installs all three.
-  void require_browser() {
-    if (std::string(AMBDIAG_NODE).empty())
-      GTEST_SKIP() << "node not found at configure time (deploy/install-deps.sh)";
-    if (!fs::exists("/usr/bin/chromium") && !std::getenv("AMBDIAG_CHROMIUM"))
-      GTEST_SKIP() << "no /usr/bin/chromium (deploy/install-deps.sh installs Debian's)";
-    if (!fs::exists(fs::path(AMBDIAG_WEB_SOURCE) / "node_modules/playwright-core"))
-      GTEST_SKIP() << "web/node_modules missing (deploy/install-deps.sh runs npm ci in web/)";
-  }
-
-  // Two pumps of the reference machine, the second's piston worn 1.5 x from
-  // its 4th run; then, where the server has alarms, waits for that pump's.
-  std::string set_up_fleet() {
-    const auto runs = run_fleet({{"W-1", reference_model, 4, 2.0, 1.0, 3, {}},
-                                 {"W-2", reference_model, 4, 2.0, 1.0, 4, {"balance_piston_wear=1.5@run4"}}},
-                                2, 0.1);
-    std::string faulty_run;
-    for (const auto& o : runs)
-      if (o.pump == "W-2" && o.run == 4) faulty_run = o.run_id;
-    EXPECT_FALSE(faulty_run.empty());
-    const auto deadline = std::chrono::steady_clock::now() + 10s;
-    while (std::chrono::steady_clock::now() < deadline) {
-      const auto r = get("/api/v1/alarms?pump_id=W-2");
-      if (!r || r->status != 200 || !json_of(r)["alarms"].empty()) break;
-      std::this_thread::sleep_for(200ms);
-    }
-    return faulty_run;
-  }
-
-  int run_browser(const std::string& faulty_run, const std::string& checks) {
-    env["AMBDIAG_URL"] = "http://127.0.0.1:" + std::to_string(port);
-    env["AMBDIAG_VIEWER_TOKEN"] = tokens["viewer"];
-    env["AMBDIAG_OPERATOR_TOKEN"] = tokens["operator"];
-    env["AMBDIAG_ENGINEER_TOKEN"] = tokens["engineer"];
-    env["AMBDIAG_PUMPS"] = "W-1,W-2";
-    env["AMBDIAG_FAULTY_PUMP"] = "W-2";
-    env["AMBDIAG_FAULTY_RUN"] = faulty_run;
-    env["AMBDIAG_SCREENSHOTS"] = AMBDIAG_SCREENSHOTS;
-    env["AMBDIAG_UI_CHECKS"] = checks;
-    Process node({AMBDIAG_NODE, std::string(AMBDIAG_WEB_SOURCE) + "/tests/ui_test.mjs"}, env,
-                 (dir / "browser.log").string());
-    const int rc = node.wait(120s);
-    std::printf("%s", node.log().c_str());
-    if (rc != 0)
-      ADD_FAILURE() << "browser checks failed (rc " << rc << "):\n"
-                    << node.log() << "\n--- server ---\n"
-                    << server->log();
-    return rc;
-  }
-};
-
 TEST_F(WebUiTest, FleetPumpRunAndAlarmViewsWorkInAHeadlessBrowser) {
   require_browser();
+  if (IsSkipped()) return;
   const std::string faulty_run = set_up_fleet();
   ASSERT_FALSE(faulty_run.empty());
-  EXPECT_EQ(run_browser(faulty_run, "all"), 0);
+  EXPECT_EQ(run_browser(faulty_run, "fleet,run,pump"), 0);
 }
 
 }  // namespace
