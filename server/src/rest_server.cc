@@ -93,6 +93,8 @@ struct RestServer::Impl {
         http(*server) {
     detail::add_read_routes(routes, started);
     detail::add_analysis_routes(routes);
+    detail::add_trend_routes(routes);
+    detail::add_grafana_routes(routes);
     detail::add_service_routes(routes, service);
     detail::add_web_routes(routes);
     register_metrics();
@@ -156,7 +158,7 @@ struct RestServer::Impl {
       if (!caller) return;  // 401 or 403 sent
       if (!rate_ok(*caller, req, res)) return;
     }
-    if (route.method != "GET" && !opt.analysis)
+    if (route.method != "GET" && !route.read_only && !opt.analysis)
       return send_error(res, 503, "this server runs without the analysis service: " + req.method + " " + req.path + " is not served");
     detail::RouteContext ctx{pool, opt, caller.value_or(detail::Caller{}), req, res};
     route.handler(ctx, found.params);

@@ -65,4 +65,12 @@ struct Historian::Impl {
   }
 };
 
+// historian_trends.cc: inside the caller's write transaction, the run's
+// points from these values, replacing those of an older analysis job (false,
+// nothing written, when a newer job's are held or the run is not held).
+bool put_run_series(Historian::Impl& impl, std::int64_t job_id, const std::string& pump_id, const std::string& run_id,
+                    const std::vector<SeriesValue>& values);
+// InputError (prefixed with `what`) for an empty name or a non-finite value or sd.
+void check_series_values(const std::vector<SeriesValue>& values, const std::string& what);
+
 }  // namespace ambdiag::storage

@@ -178,8 +178,10 @@ bool Historian::set_job_progress(std::int64_t job_id, int attempt, double progre
 }
 
 bool Historian::finish_job(std::int64_t job_id, int attempt, const std::string& result_json,
-                           const std::vector<JobArtifact>& artifacts) {
+                           const std::vector<JobArtifact>& artifacts,
+                           const std::optional<std::vector<SeriesValue>>& series) {
   impl_->require_writer("finish_job");
+  if (series) check_series_values(*series, "finish_job " + job_ref(job_id));
   std::set<std::string> names;
   for (const auto& a : artifacts) {
     if (a.name.empty()) throw InputError("finish_job " + job_ref(job_id) + ": a file without a name");
@@ -209,6 +211,14 @@ bool Historian::finish_job(std::int64_t job_id, int attempt, const std::string& 
         .bind(3, a.content_type)
         .bind_blob(4, {reinterpret_cast<const std::uint8_t*>(a.data.data()), a.data.size()})
         .run();
+  }
+  if (series) {
+    // Only an analysis of a run feeds its pump's series (trends.h).
+    auto& k = impl_->stmt("SELECT kind, pump_id, run_id FROM jobs WHERE job_id = ?");
+    k.bind(1, job_id).step();
+    const std::string kind = k.col_text(0), pump_id = k.col_text(1), run_id = k.col_text(2);
+    k.reset();
+    if (kind == "analysis" && !run_id.empty()) put_run_series(*impl_, job_id, pump_id, run_id, *series);
   }
   tx.commit();
   return true;

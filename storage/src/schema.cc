@@ -227,6 +227,39 @@ CREATE TABLE tokens (
   revoked_at  TEXT
 ) STRICT;
 )sql"},
+    // v5: trend series (trends.h). A catalogue of each pump's series, fed
+    // by its runs' analyses, and their points: one per (series, run), at the
+    // run's started_at in ns, clustered by (series, time) so a range of a
+    // series is one index walk. series_runs says which analysis job's values
+    // a run's points are (the newest done one replaces the older). Monitoring
+    // values are not copied here: monitoring_snapshots is already keyed by
+    // (pump_id, time_ns). The points of done analyses stored before v5 are
+    // filled by the server at its start (Historian::backfill_series): which
+    // values a result gives is the server's code, not SQL.
+    {5, R"sql(
+CREATE TABLE series (
+  series_id  INTEGER PRIMARY KEY,
+  pump_id    TEXT NOT NULL REFERENCES pumps(pump_id),
+  name       TEXT NOT NULL CHECK (name <> ''),
+  unit       TEXT NOT NULL,
+  UNIQUE (pump_id, name)
+) STRICT;
+
+CREATE TABLE series_points (
+  series_id  INTEGER NOT NULL REFERENCES series(series_id),
+  time_ns    INTEGER NOT NULL,
+  run_id     TEXT NOT NULL REFERENCES runs(run_id) ON DELETE CASCADE,
+  value      REAL NOT NULL,
+  sd         REAL CHECK (sd IS NULL OR sd >= 0),
+  PRIMARY KEY (series_id, time_ns, run_id)
+) STRICT, WITHOUT ROWID;
+CREATE INDEX series_points_by_run ON series_points(run_id, series_id);
+
+CREATE TABLE series_runs (
+  run_id  TEXT PRIMARY KEY REFERENCES runs(run_id) ON DELETE CASCADE,
+  job_id  INTEGER NOT NULL REFERENCES jobs(job_id)
+) STRICT, WITHOUT ROWID;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -60,6 +60,18 @@ TEST(RouteTable, AKnownPathWithAnotherMethodIs405WithItsAllowList) {
   EXPECT_FALSE(f.path_known);
 }
 
+TEST(RouteTable, ATrailingSlashReachesOnlyARouteThatAllowsIt) {
+  auto t = table();
+  Route root{"GET", "/api/v1/grafana", storage::Role::viewer, "grafana", noop()};
+  root.trailing_slash = true;
+  t.add(std::move(root));
+  auto f = t.find("GET", {"api", "v1", "grafana", ""});
+  ASSERT_NE(f.route, nullptr);
+  EXPECT_EQ(f.route->summary, "grafana");
+  EXPECT_NE(t.find("GET", {"api", "v1", "grafana"}).route, nullptr);
+  EXPECT_EQ(t.find("GET", {"api", "v1", "pumps", "P-1", "model", ""}).route, nullptr);
+}
+
 TEST(RouteTable, MalformedOrDuplicateRoutesAreRefusedWhenAdded) {
   RouteTable t = table();
   EXPECT_THROW(t.add({"GET", "/api/v1/pumps/{pump_id}", std::nullopt, "again", noop()}), std::logic_error);

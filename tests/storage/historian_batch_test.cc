@@ -120,6 +120,7 @@ TEST(HistorianSchema, AVersion1FileIsMigratedToTheLatestKeepingItsRuns) {
   // the runs, user_version 1.
   // (v4's tables dropped too, v1's jobs table back.)
   raw_exec(path,
+           "DROP TABLE series_runs; DROP TABLE series_points; DROP TABLE series; "
            "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
            "DROP TABLE pump_references; DROP TABLE models; "
            "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "

@@ -119,33 +119,12 @@ TEST(HistorianJobsCrash, KilledAtAnyTimeInALoopOfFinishesEveryJobIsAllOrNothing)
   int total_done = 0;
   // Three servers in turn, each killed at another moment of its loop.
   for (int round = 0; round < 3; ++round) {
-    int fds[2];
-    ASSERT_EQ(::pipe(fds), 0);
-    const pid_t child = ::fork();
-    ASSERT_GE(child, 0);
-    if (child == 0) {
-      ::close(fds[0]);
-      auto h = Historian::open(path);
-      h.requeue_running_jobs();
-      int n = 0;
-      while (auto j = h.claim_job("child")) {
-        h.finish_job(j->job_id, j->attempts, result_of(j->job_id), files_of(j->job_id));
-        if (++n == 20) {
-          const char c = 'F';
-          [[maybe_unused]] auto w = ::write(fds[1], &c, 1);
-        }
-      }
-      ::_exit(3);
-    }
-    ::close(fds[1]);
-    char c = 0;
-    ASSERT_EQ(::read(fds[0], &c, 1), 1);
-    ::usleep(static_cast<useconds_t>(500 + 1700 * round));  // into the loop, at a moment that differs
-    ::kill(child, SIGKILL);
-    int status = 0;
-    ::waitpid(child, &status, 0);
-    ::close(fds[0]);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the child finished all jobs before it was killed";
+    // Into the loop, at a moment that differs.
+    const auto k = crash::kill_a_finishing_loop(path, static_cast<useconds_t>(500 + 1700 * round), [](Historian& h, const Job& j) {
+      h.finish_job(j.job_id, j.attempts, result_of(j.job_id), files_of(j.job_id));
+    });
+    ASSERT_TRUE(k.reported);
+    ASSERT_TRUE(k.by_sigkill()) << "the child finished all jobs before it was killed";
 
     auto h = Historian::open(path);
     EXPECT_EQ(raw_integrity_check(path), "ok");

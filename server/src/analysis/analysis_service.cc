@@ -17,6 +17,7 @@
 #include "ambdiag/storage/historian.h"
 #include "job_runner.h"
 #include "run_analysis.h"
+#include "trends/run_series.h"
 #include "views.h"
 
 namespace ambdiag::server {
@@ -113,6 +114,12 @@ void AnalysisService::start() {
   {
     std::lock_guard lock(I.ctl_mu);
     const int requeued = I.ctl->requeue_running_jobs();
+    // Trend points of analyses stored before schema v5 (or without them).
+    const int backfilled = I.ctl->backfill_series([](const std::string& result) {
+      return detail::run_series(nlohmann::json::parse(result, nullptr, false));
+    });
+    if (I.opt.verbose && backfilled > 0)
+      std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
     int queued = 0;
     for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
     if (I.opt.verbose && (requeued > 0 || queued > 0))

@@ -12,6 +12,7 @@
 #include "ambdiag/core/run_recording.h"
 #include "ambdiag/server/events.h"
 #include "run_analysis.h"
+#include "trends/run_series.h"
 
 namespace ambdiag::server::detail {
 
@@ -238,8 +239,11 @@ void JobRunner::execute(const storage::Job& job) {
     const double cpu = thread_cpu_s() - cpu0;
     out.result["cpu_s"] = cpu;
     const std::string result_text = out.result.dump();
+    // An analysis' trend values go in with its result (one transaction).
+    std::optional<std::vector<SeriesValue>> series;
+    if (job.key.kind == "analysis") series = run_series(out.result);
     const NormalPriorityScope normal;
-    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, result_text, out.artifacts); });
+    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, result_text, out.artifacts, series); });
     if (!ok) summary = "result refused: the attempt no longer holds the job";
   } catch (const Abandoned&) {
     summary = "abandoned";

@@ -58,6 +58,10 @@ std::int64_t positive_integer(const std::string& text, const std::string& what);
 void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point started);
 // models, references, analyses and their files, explain, jobs (analysis_routes.cc).
 void add_analysis_routes(RouteTable& t);
+// series, trends, prognosis (trend_routes.cc).
+void add_trend_routes(RouteTable& t);
+// the Grafana data source under /api/v1/grafana (grafana_routes.cc).
+void add_grafana_routes(RouteTable& t);
 // the web UI's files, the fleet in one reply, a run's model FRF (web_routes.cc).
 void add_web_routes(RouteTable& t);
 // openapi.json, metrics, events: service_routes.h (they need the server's state).

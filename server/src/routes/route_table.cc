@@ -114,6 +114,10 @@ RouteTable::Found RouteTable::find(const std::string& method, const std::vector<
         best.allow += std::string(best.allow.empty() ? "" : ", ") + each + (x == "GET" ? ", HEAD" : "");
         break;
       }
+  if (!best.route && segments.size() > 1 && segments.back().empty()) {
+    auto trimmed = find(method, {segments.begin(), segments.end() - 1});
+    if (trimmed.route && trimmed.route->trailing_slash) return trimmed;
+  }
   return best;
 }
 

@@ -46,6 +46,12 @@ struct Route {
   // The token may also come as ?access_token= (EventSource cannot set
   // headers); only where a browser needs it, since URLs end up in logs.
   bool token_in_query = false;
+  // A POST that only reads (Grafana's queries carry their request in a
+  // body): served without the analysis service, like a GET.
+  bool read_only = false;
+  // Also answers the path with a trailing '/' (Grafana's connection test
+  // asks for the data source's URL + "/"); other routes refuse it (404).
+  bool trailing_slash = false;
 };
 
 // One segment of a parsed pattern: a literal, or a parameter's name.
@@ -69,7 +75,8 @@ class RouteTable {
     std::string allow;             // "GET, HEAD, PUT" for a 405
   };
   // The most specific route (most literal segments) whose pattern the
-  // decoded path segments match.
+  // decoded path segments match; a path ending in '/' (an empty last
+  // segment) matches a route with trailing_slash without it.
   Found find(const std::string& method, const std::vector<std::string>& segments) const;
 
   const std::vector<Route>& routes() const { return routes_; }

@@ -3,20 +3,16 @@
 // read, so a chart and an alarm always see the same number.
 #pragma once
 
-#include <optional>
-#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "ambdiag/storage/trends.h"
+
 namespace ambdiag::server::detail {
 
-struct SeriesValue {
-  std::string name;  // e.g. "mode.radial bending 1 (forward).f_hz"
-  std::string unit;  // "Hz", "1", "rpm", ...
-  double value = 0.0;
-  std::optional<double> sd;  // one standard deviation, where the analysis gives one
-};
+// {name, unit, value, sd?}: the historian keeps exactly these (trends.h).
+using SeriesValue = storage::SeriesValue;
 
 // The values of one analysis job's result (run_analysis.h's analyse_run keys):
 //   run.speed_rpm                       the run's speed

@@ -9,6 +9,8 @@
 //   GET /api/v1/runs/{run_id}/samples.f32  application/octet-stream, the exact bytes
 //   pumps' models and references, runs' analyses and their files, jobs,
 //   explain requests (rest.md), with `Authorization: Bearer TOKEN` and roles
+//   pumps' trend series, trends and prognosis; a Grafana data source under
+//   /api/v1/grafana (docs/service.md "Trends")
 //
 //   GET /api/v1/openapi.json              OpenAPI 3.1 of every route (from the route table)
 //   GET /metrics                           Prometheus text format 0.0.4, no token

@@ -34,6 +34,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/monitoring.h"
 #include "ambdiag/storage/service.h"
+#include "ambdiag/storage/trends.h"
 
 namespace ambdiag::storage {
 
@@ -240,9 +241,14 @@ class Historian {
   // The attempt's result and files, stored in one transaction with the
   // status `done`. False, storing nothing, when that attempt no longer
   // holds the job (requeued, cancelled, another attempt): a result is
-  // stored once.
+  // stored once. `series`: the values the result gives the pump's trend
+  // series (analysis jobs of a run only; ignored for other kinds), kept in
+  // the same transaction and replacing the run's points of any older
+  // analysis job (trends.h). Throws InputError naming a series with an
+  // empty name or a value or sd that is not finite, storing nothing.
   bool finish_job(std::int64_t job_id, int attempt, const std::string& result_json,
-                  const std::vector<JobArtifact>& artifacts = {});
+                  const std::vector<JobArtifact>& artifacts = {},
+                  const std::optional<std::vector<SeriesValue>>& series = std::nullopt);
   bool fail_job(std::int64_t job_id, int attempt, const std::string& error);
   // Jobs left `running` (a server that died): `queued` again, or `failed`
   // ("gave up after N attempts") once they have had max_attempts claims.
@@ -262,6 +268,23 @@ class Historian {
   // A done job's file, nullopt when it has none of that name.
   std::optional<JobArtifact> find_artifact(std::int64_t job_id, const std::string& name);
   std::vector<std::string> list_artifacts(std::int64_t job_id);
+
+  // --- trend series (trends.h; historian_trends.cc) ---
+  // Points for the done analysis jobs whose run holds none of them (files
+  // upgraded from schema 4, or results stored without series): for each
+  // run the newest done analysis job's result, through `series_of`.
+  // Returns how many runs got their points.
+  int backfill_series(const std::function<std::vector<SeriesValue>(const std::string& result_json)>& series_of);
+  // The pump's series: those its runs fed, then its monitoring values when
+  // it has snapshots ("monitoring.speed_rpm", "monitoring.orbit_major_m.a",
+  // ...); by name.
+  std::vector<SeriesInfo> list_series(const std::string& pump_id);
+  // The series' points in the query's range; nullopt when the pump has no
+  // such series. Throws InputError for max_points < 1 or from > to.
+  std::optional<Trend> query_trend(const std::string& pump_id, const std::string& name, const TrendQuery& q);
+  // The series' points of these runs (e.g. the reference runs), by time.
+  std::vector<TrendPoint> run_points(const std::string& pump_id, const std::string& name,
+                                     const std::vector<std::string>& run_ids);
 
   // --- API tokens (service.h; historian_tokens.cc) ---
   // Creates a token of that role and returns its secret (shown once; only
