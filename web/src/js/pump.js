@@ -31,7 +31,10 @@ export function seriesData(s) {
   });
   const r = s.reference;
   const band = r && Number.isFinite(r.mean) ? { mean: r.mean, lo: r.mean - 2 * (r.sd || 0), hi: r.mean + 2 * (r.sd || 0) } : null;
-  return { t, v, lo, hi, band, limits: s.limits ? limitLines(s.limits) : [], runs: bucketed ? null : pts.map((p) => p.run_id) };
+  const limits = s.limits ? limitLines(s.limits) : [];
+  // detection.ratio is statistic / threshold: 1 is where detection fires.
+  if (s.name === 'detection.ratio' && !limits.length) limits.push({ value: 1, label: 'detection threshold' });
+  return { t, v, lo, hi, band, limits, runs: bucketed ? null : pts.map((p) => p.run_id) };
 }
 
 async function trendsSection(pumpId, box) {
