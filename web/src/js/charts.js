@@ -97,11 +97,16 @@ export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, 
     plugins: [bandPlugin(band, limits)],
   };
   const u = new uPlot(opts, data, el);
-  if (onPoint)
-    u.over.addEventListener('click', () => {
+  if (onPoint) {
+    // A click, not the end of a drag that zoomed.
+    let down = null;
+    u.over.addEventListener('mousedown', (e) => (down = [e.clientX, e.clientY]));
+    u.over.addEventListener('click', (e) => {
       const i = u.cursor.idx;
-      if (i !== null && i !== undefined) onPoint(i);
+      const moved = down ? Math.hypot(e.clientX - down[0], e.clientY - down[1]) : 0;
+      if (moved < 4 && i !== null && i !== undefined) onPoint(i);
     });
+  }
   return u;
 }
 
