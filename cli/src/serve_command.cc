@@ -8,10 +8,12 @@
 #include <csignal>
 #include <filesystem>
 #include <cstdio>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <thread>
 
+#include "ambdiag/core/error.h"
 #include "ambdiag/core/process_lock.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/events.h"
@@ -38,11 +40,27 @@ int integer_in(const Args& args, const std::string& name, double lo, double hi, 
   return static_cast<int>(*v);
 }
 
+// The server's default alarm rules (docs/service.md "Alarms"): the file's
+// rules over the built-in ones. Parsed here; the analysis service checks the
+// rules when it is made, so a bad file stops the start with the field named
+// before anything listens.
+nlohmann::json read_alarm_defaults(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw UsageError("--alarm-defaults: cannot read " + path);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("--alarm-defaults " + path + ": not JSON: " + e.what());
+  }
+  return j;
+}
+
 int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
-                   "--rate-limit-burst", "--web-dir"},
+                   "--rate-limit-burst", "--alarm-defaults", "--web-dir"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -70,6 +88,7 @@ int run_serve(const std::vector<std::string>& argv) {
   if (!(rate >= 0 && rate <= 1e6)) throw UsageError("--rate-limit: must be requests per second in 0..1000000 (0: no limit)");
   const double burst = args.number("--rate-limit-burst").value_or(std::max(1.0, 2 * rate));
   if (!(burst >= 1 && burst <= 1e7)) throw UsageError("--rate-limit-burst: must be in 1..10000000");
+  if (const auto file = args.option("--alarm-defaults")) aopt.alarm_defaults = read_alarm_defaults(*file);
 
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
@@ -173,7 +192,7 @@ std::vector<Command> serve_commands() {
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
-           "                     [--rate-limit N] [--rate-limit-burst B] [--web-dir DIR]\n"
+           "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -189,6 +208,9 @@ std::vector<Command> serve_commands() {
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
            "  live updates (server-sent events); GET /api/v1/openapi.json: every route.\n"
+           "Each analysed run is evaluated against the pump's alarm rules; --alarm-defaults FILE: the server's\n"
+           "default rules (JSON {\"rules\": [...], \"plant_state\"?}, each rule over the built-in one of its id;\n"
+           "docs/service.md \"Alarms\"), checked at the start.\n"
            "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
            "  ../share/ambdiag/web next to this binary; web/README.md).\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"

@@ -93,6 +93,7 @@ struct RestServer::Impl {
         http(*server) {
     detail::add_read_routes(routes, started);
     detail::add_analysis_routes(routes);
+    detail::add_alarm_routes(routes);
     detail::add_trend_routes(routes);
     detail::add_grafana_routes(routes);
     detail::add_service_routes(routes, service);

@@ -120,10 +120,7 @@ void Historian::begin_run(const RunHeader& header) {
     }
   }
   const std::string now = now_utc();
-  impl_->stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING")
-      .bind(1, header.pump_id)
-      .bind(2, now)
-      .run();
+  impl_->register_pump(header.pump_id, now);
   impl_->stmt(
           "INSERT INTO runs (run_id, pump_id, kind, started_at, speed_rpm, sample_rate_hz, n_channels, header, "
           "status, created_at, updated_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'receiving', ?, ?)")

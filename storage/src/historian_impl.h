@@ -44,6 +44,21 @@ struct Historian::Impl {
     return it->second.reset();
   }
 
+  // Registers the pump if it is new (first_seen = now).
+  void register_pump(const std::string& pump_id, const std::string& now) {
+    stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING").bind(1, pump_id).bind(2, now).run();
+  }
+  // The pump's next version number: `sql` (a literal) selects the highest
+  // held + 1 for the bound pump. Inside BEGIN IMMEDIATE: no other writer can
+  // take the same number.
+  std::int64_t next_version(const char* sql, const std::string& pump_id) {
+    auto& next = stmt(sql);
+    next.bind(1, pump_id).step();
+    const auto version = next.col_int(0);
+    next.reset();
+    return version;
+  }
+
   void require_writer(const char* what) const {
     if (read_only) throw std::logic_error(std::string("Historian::") + what + " on a read-only connection");
   }

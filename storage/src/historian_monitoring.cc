@@ -37,10 +37,7 @@ PutResult Historian::put_monitoring(std::span<const MonitoringSnapshot> snapshot
   const std::string now = now_utc();
   PutResult r;
   for (const auto& s : snapshots) {
-    impl_->stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING")
-        .bind(1, s.pump_id)
-        .bind(2, now)
-        .run();
+    impl_->register_pump(s.pump_id, now);
     auto& ins = impl_->stmt(
         "INSERT INTO monitoring_snapshots (pump_id, time_ns, received_at, speed_rpm, " AMBDIAG_MONITORING_VALUES
         ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "

@@ -23,15 +23,8 @@ int Historian::put_model(const std::string& pump_id, const std::string& plant_js
   if (plant_json.empty()) throw InputError("put_model " + quoted(pump_id) + ": empty plant model");
   Transaction tx(impl_->db, Transaction::Kind::write);
   const std::string now = now_utc();
-  impl_->stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING")
-      .bind(1, pump_id)
-      .bind(2, now)
-      .run();
-  // Inside BEGIN IMMEDIATE: no other writer can take the same number.
-  auto& next = impl_->stmt("SELECT coalesce(max(version), 0) + 1 FROM models WHERE pump_id = ?");
-  next.bind(1, pump_id).step();
-  const auto version = next.col_int(0);
-  next.reset();
+  impl_->register_pump(pump_id, now);
+  const auto version = impl_->next_version("SELECT coalesce(max(version), 0) + 1 FROM models WHERE pump_id = ?", pump_id);
   impl_->stmt(
           "INSERT INTO models (pump_id, version, plant_json, created_at, created_by, comment) "
           "VALUES (?, ?, ?, ?, ?, ?)")
@@ -93,10 +86,7 @@ int Historian::put_reference(const std::string& pump_id, const std::vector<std::
       throw InputError(where + " is " + status + (reason.empty() ? "" : " (" + reason + ")") + ", not complete");
     if (kind != "identification") throw InputError(where + " is a " + kind + " run, not an identification run");
   }
-  auto& next = impl_->stmt("SELECT coalesce(max(version), 0) + 1 FROM pump_references WHERE pump_id = ?");
-  next.bind(1, pump_id).step();
-  const auto version = next.col_int(0);
-  next.reset();
+  const auto version = impl_->next_version("SELECT coalesce(max(version), 0) + 1 FROM pump_references WHERE pump_id = ?", pump_id);
   impl_->stmt("INSERT INTO pump_references (pump_id, version, created_at, created_by) VALUES (?, ?, ?, ?)")
       .bind(1, pump_id)
       .bind(2, version)

@@ -260,6 +260,87 @@ CREATE TABLE series_runs (
   job_id  INTEGER NOT NULL REFERENCES jobs(job_id)
 ) STRICT, WITHOUT ROWID;
 )sql"},
+    // v6: alarms (server/src/alarms; docs/service.md "Alarms"). v1's `alarms`
+    // never held a row (no program wrote it): replaced. Per pump: the rule
+    // versions, each alarm (one open per pump and rule: the partial unique
+    // index), the journal of every transition (append only: triggers refuse
+    // UPDATE and DELETE; seq is the cursor plant systems poll), each rule's
+    // evaluation memory and the evaluation cursor (the last run evaluated,
+    // so an evaluation interrupted by a crash is done at the next start).
+    {6, R"sql(
+DROP INDEX alarms_by_pump;
+DROP TABLE alarms;
+
+CREATE TABLE alarm_rules (
+  pump_id     TEXT NOT NULL REFERENCES pumps(pump_id),
+  version     INTEGER NOT NULL CHECK (version >= 1),
+  rules_json  TEXT NOT NULL,
+  created_at  TEXT NOT NULL,
+  created_by  TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY (pump_id, version)
+) STRICT;
+
+CREATE TABLE alarms (
+  alarm_id           INTEGER PRIMARY KEY AUTOINCREMENT,
+  pump_id            TEXT NOT NULL CHECK (pump_id <> ''),
+  rule               TEXT NOT NULL CHECK (rule <> ''),
+  severity           TEXT NOT NULL CHECK (severity IN ('low', 'medium', 'high', 'critical')),
+  state              TEXT NOT NULL CHECK (state IN ('normal', 'unack_active', 'ack_active', 'unack_rtn', 'shelved',
+                                                    'suppressed', 'out_of_service')),
+  active             INTEGER NOT NULL CHECK (active IN (0, 1)),
+  acknowledged       INTEGER NOT NULL CHECK (acknowledged IN (0, 1)),
+  latched            INTEGER NOT NULL DEFAULT 0 CHECK (latched IN (0, 1)),
+  shelved_until      TEXT,
+  suppressed_reason  TEXT NOT NULL DEFAULT '',
+  out_of_service     INTEGER NOT NULL DEFAULT 0 CHECK (out_of_service IN (0, 1)),
+  raised_at          TEXT NOT NULL,
+  cleared_at         TEXT,
+  updated_at         TEXT NOT NULL,
+  run_id             TEXT NOT NULL DEFAULT '',
+  message            TEXT NOT NULL,
+  fault              TEXT,
+  value              REAL
+) STRICT;
+CREATE UNIQUE INDEX alarms_open ON alarms(pump_id, rule) WHERE state <> 'normal';
+CREATE INDEX alarms_by_pump ON alarms(pump_id, alarm_id);
+CREATE INDEX alarms_by_state ON alarms(state, alarm_id);
+
+CREATE TABLE alarm_events (
+  seq       INTEGER PRIMARY KEY AUTOINCREMENT,
+  alarm_id  INTEGER NOT NULL REFERENCES alarms(alarm_id),
+  pump_id   TEXT NOT NULL,
+  rule      TEXT NOT NULL,
+  kind      TEXT NOT NULL CHECK (kind <> ''),
+  time      TEXT NOT NULL,
+  from_state TEXT NOT NULL,
+  to_state  TEXT NOT NULL,
+  by        TEXT NOT NULL CHECK (by <> ''),
+  comment   TEXT NOT NULL DEFAULT '',
+  run_id    TEXT NOT NULL DEFAULT ''
+) STRICT;
+CREATE INDEX alarm_events_by_alarm ON alarm_events(alarm_id, seq);
+CREATE INDEX alarm_events_by_time ON alarm_events(time);
+CREATE TRIGGER alarm_events_no_update BEFORE UPDATE ON alarm_events
+BEGIN SELECT RAISE(ABORT, 'alarm_events is append-only'); END;
+CREATE TRIGGER alarm_events_no_delete BEFORE DELETE ON alarm_events
+BEGIN SELECT RAISE(ABORT, 'alarm_events is append-only'); END;
+
+CREATE TABLE alarm_conditions (
+  pump_id  TEXT NOT NULL,
+  rule     TEXT NOT NULL,
+  memory   TEXT NOT NULL,
+  PRIMARY KEY (pump_id, rule)
+) STRICT, WITHOUT ROWID;
+
+CREATE TABLE alarm_cursors (
+  pump_id            TEXT PRIMARY KEY,
+  started_at         TEXT NOT NULL,
+  run_id             TEXT NOT NULL,
+  model_version      INTEGER NOT NULL,
+  reference_version  INTEGER NOT NULL,
+  last_valid_at      TEXT
+) STRICT;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -215,6 +215,45 @@ class FleetTest : public ServiceTest {
     return nlohmann::json::object();
   }
 
+  // The alarms (issue 19): none raised by a healthy run; an alarm that names
+  // a fault names the run's true one; a pump with a fault clearly beyond
+  // normal has that fault's alarm, raised at or before its first such run.
+  // Prints every alarm with the run that raised it.
+  void check_alarms(const std::vector<RunOutcome>& runs) {
+    std::map<std::string, const RunOutcome*> by_id;
+    std::map<std::string, const RunOutcome*> first_clear;  // pump -> its first run clearly beyond normal
+    for (const auto& o : runs) {
+      by_id[o.run_id] = &o;
+      if (!o.fault.empty() && clearly_beyond_normal(o.fault, o.fault_value) && !first_clear.count(o.pump)) first_clear[o.pump] = &o;
+    }
+    std::this_thread::sleep_for(1s);  // the last analyses' evaluations
+    const auto alarms = json_of(get("/api/v1/alarms?limit=10000"))["alarms"];
+    std::map<std::string, int> fault_alarm_run;  // pump -> run that raised its right fault's alarm
+    std::printf("%-6s %-28s %-9s %-14s %3s %-22s %s\n", "pump", "alarm", "severity", "state", "run", "truth", "message");
+    for (const auto& a : alarms) {
+      const auto history = json_of(get("/api/v1/alarms/" + std::to_string(a["alarm_id"].get<int>()) + "/history"))["events"];
+      const std::string raised_by = history.empty() ? "" : history[0].value("run_id", "");
+      const auto it = by_id.find(raised_by);
+      ASSERT_NE(it, by_id.end()) << "an alarm raised by no streamed run: " << a.dump();
+      const RunOutcome& o = *it->second;
+      char truth[64] = "healthy";
+      if (!o.fault.empty()) std::snprintf(truth, sizeof truth, "%s=%.3f", o.fault.c_str(), o.fault_value);
+      std::printf("%-6s %-28s %-9s %-14s %3d %-22s %s\n", o.pump.c_str(), a["rule"].get<std::string>().c_str(),
+                  a["severity"].get<std::string>().c_str(), a["state"].get<std::string>().c_str(), o.run, truth,
+                  a["message"].get<std::string>().c_str());
+      EXPECT_FALSE(o.fault.empty() || o.fault == "unbalance") << "an alarm raised by a healthy run " << o.run_id << ": " << a.dump();
+      if (a.contains("fault")) {
+        EXPECT_EQ(a["fault"], o.fault) << a.dump();
+      }
+      const std::string rule = a["rule"];
+      if (rule == "fault." + o.fault && !fault_alarm_run.count(o.pump)) fault_alarm_run[o.pump] = o.run;
+    }
+    for (const auto& [pump, o] : first_clear) {
+      ASSERT_TRUE(fault_alarm_run.count(pump)) << pump << ": no fault." << o->fault << " alarm (clearly beyond normal from run " << o->run << ")";
+      EXPECT_LE(fault_alarm_run[pump], o->run) << pump << ": fault." << o->fault << " raised after its first clearly faulty run";
+    }
+  }
+
   // The assertions of the issue, and a table of what the server concluded
   // (the evidence: printed, so a run's log shows the fleet).
   struct Counts {

@@ -25,6 +25,7 @@ TEST_F(FleetTest, TwoMachinesHealthyAndFaultyPumps) {
   const auto runs = run_fleet(pumps, 4, 8.0);
   ASSERT_EQ(runs.size(), 45u);
   const Counts c = check(runs);
+  check_alarms(runs);
   EXPECT_EQ(c.healthy, 4 * 6 + 3 * 4);
   EXPECT_EQ(c.faulty_clear, 8);  // R-3 runs 6, 7 (1.4, 1.6); S-3 and S-4 runs 5-7
   // The runs of a pump 8 s after its third arrive with the reference in
@@ -53,6 +54,7 @@ TEST_F(FleetTest, ShaftAndChannelFaultsOfBothMachines) {
   const auto runs = run_fleet(pumps, 3, 6.0);
   ASSERT_EQ(runs.size(), 30u);
   const Counts c = check(runs);
+  check_alarms(runs);
   EXPECT_EQ(c.healthy, 6 * 3);
   EXPECT_EQ(c.faulty_clear, 5 * 2);
   EXPECT_EQ(c.frf_unchanged, 2);

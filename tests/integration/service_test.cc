@@ -106,9 +106,14 @@ TEST_F(ServiceTest, EveryRunIsAnalysedAndAReferenceAddsDetectionAndDiagnosis) {
   EXPECT_EQ(dry["diagnosis"]["faults"][0]["fault"], "dry_run") << dry["diagnosis"].dump();
   EXPECT_EQ(get(run_url(kDryRun) + "/diagnosis.svg")->status, 200);
 
-  const auto after = json_of(get("/api/v1/pumps/P-101"));
+  // The dry run's alarm (fault.dry_run, critical): evaluated just after its analysis.
+  auto after = json_of(get("/api/v1/pumps/P-101"));
+  for (auto until = std::chrono::steady_clock::now() + 10s; after["health"] != "alarm" && std::chrono::steady_clock::now() < until;) {
+    std::this_thread::sleep_for(100ms);
+    after = json_of(get("/api/v1/pumps/P-101"));
+  }
   EXPECT_EQ(after["reference"]["status"], "active");
-  EXPECT_EQ(after["health"], "alarm");  // the newest run is the dry run
+  EXPECT_EQ(after["health"], "alarm") << after.dump() << json_of(get("/api/v1/alarms")).dump();
   const auto job = json_of(get("/api/v1/jobs/" + std::to_string(json_of(ref)["job_id"].get<int>())));
   EXPECT_EQ(job["kind"], "reference");
   EXPECT_EQ(job["status"], "done");

@@ -118,14 +118,8 @@ TEST(HistorianSchema, AVersion1FileIsMigratedToTheLatestKeepingItsRuns) {
   }
   // Back to what migration 1 left: no monitoring table, no checksum kind of
   // the runs, user_version 1.
-  // (v4's tables dropped too, v1's jobs table back.)
-  raw_exec(path,
-           "DROP TABLE series_runs; DROP TABLE series_points; DROP TABLE series; "
-           "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
-           "DROP TABLE pump_references; DROP TABLE models; "
-           "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "
-           "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT; "
-           "DROP TABLE monitoring_snapshots; ALTER TABLE runs DROP COLUMN checksum_kind; PRAGMA user_version = 1;");
+  downgrade_schema(path, 3);
+  raw_exec(path, "DROP TABLE monitoring_snapshots; ALTER TABLE runs DROP COLUMN checksum_kind; PRAGMA user_version = 1;");
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
   {
     auto h = Historian::open(path);  // the writer migrates

@@ -138,13 +138,7 @@ TEST(HistorianSchema, AVersion3FileIsMigratedToVersion4KeepingItsRuns) {
     h.end_run("P-7/old", 300, checksum_of(a));
   }
   // Back to what migration 3 left: v1's unused jobs table, no v4 tables.
-  raw_exec(path,
-           "DROP TABLE series_runs; DROP TABLE series_points; DROP TABLE series; "
-           "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
-           "DROP TABLE pump_references; DROP TABLE models; "
-           "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "
-           "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT; "
-           "PRAGMA user_version = 3;");
+  downgrade_schema(path, 3);
   ASSERT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'tokens'"), 0);
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
   {
@@ -158,6 +152,7 @@ TEST(HistorianSchema, AVersion3FileIsMigratedToVersion4KeepingItsRuns) {
     EXPECT_FALSE(h.add_token("ops", Role::admin).empty());
   }
   EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'alarm_events'"), 1);
   EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM pragma_table_info('jobs') WHERE name = 'attempts'"), 1);
   auto r = Historian::open(path, Historian::Mode::read);
   EXPECT_EQ(r.count_jobs(JobStatus::queued), 1);

@@ -42,4 +42,44 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
+// for the tests that take a file back to an older schema version.
+inline constexpr const char* kUndoAlarmsV6Sql =
+    "DROP TABLE alarm_events; DROP TABLE alarms; DROP TABLE alarm_rules; DROP TABLE alarm_conditions; "
+    "DROP TABLE alarm_cursors; CREATE TABLE alarms (alarm_id INTEGER PRIMARY KEY, pump_id TEXT NOT NULL, "
+    "raised_at TEXT NOT NULL, severity TEXT NOT NULL, kind TEXT NOT NULL, message TEXT NOT NULL) STRICT; "
+    "CREATE INDEX alarms_by_pump ON alarms(pump_id, raised_at);";
+
+// Undoes migration 5 (trend series).
+inline constexpr const char* kUndoTrendsV5Sql = "DROP TABLE series_runs; DROP TABLE series_points; DROP TABLE series;";
+
+// Undoes migration 4 (the analysis service's tables), back to v1's unused
+// jobs table.
+inline constexpr const char* kUndoServiceV4Sql =
+    "DROP TABLE job_artifacts; DROP TABLE jobs; DROP TABLE tokens; DROP TABLE reference_runs; "
+    "DROP TABLE pump_references; DROP TABLE models; "
+    "CREATE TABLE jobs (job_id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL, params TEXT NOT "
+    "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT;";
+
+// A file of the current schema taken back to what migration `version`
+// (3 or 4) left, for the tests of upgrades.
+inline void downgrade_schema(const std::string& path, int version) {
+  raw_exec(path, kUndoAlarmsV6Sql);
+  raw_exec(path, kUndoTrendsV5Sql);
+  if (version < 4) raw_exec(path, kUndoServiceV4Sql);
+  raw_exec(path, ("PRAGMA user_version = " + std::to_string(version) + ";").c_str());
+}
+
+// Runs SQL that should fail: SQLite's error message, "" when it succeeded.
+inline std::string raw_exec_error(const std::string& path, const char* sql) {
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  char* err = nullptr;
+  const int rc = sqlite3_exec(db, sql, nullptr, nullptr, &err);
+  std::string msg = rc == SQLITE_OK ? "" : (err ? err : "error");
+  sqlite3_free(err);
+  sqlite3_close(db);
+  return msg;
+}
+
 }  // namespace ambdiag::storage

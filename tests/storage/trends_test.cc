@@ -151,7 +151,7 @@ TEST(HistorianTrends, AVersion4FileGetsItsTableAndItsPointsFilledIn) {
     ASSERT_TRUE(finish(h, analysis(r1, 1, 1), std::nullopt, R"({"ratio": 0.3})"));
     ASSERT_TRUE(finish(h, {"explain", "P-1", r1, 1, 0}, std::nullopt, R"({"ratio": 9})"));
   }
-  raw_exec(path, "DROP TABLE series_runs; DROP TABLE series_points; DROP TABLE series; PRAGMA user_version = 4;");
+  downgrade_schema(path, 4);
   EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
   auto h = Historian::open(path);
   EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());

@@ -14,6 +14,8 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/events.h"
+#include "alarms/alarm_rules.h"
+#include "alarms/alarm_service.h"
 #include "ambdiag/storage/historian.h"
 #include "job_runner.h"
 #include "run_analysis.h"
@@ -40,8 +42,15 @@ struct AnalysisService::Impl {
   std::thread scheduler;
   std::vector<std::thread> workers;
 
+  std::optional<detail::AlarmService> alarms;
+
   explicit Impl(AnalysisOptions o) : opt(std::move(o)) {
     if (opt.metrics) counters.attach(*opt.metrics);
+    // The built-in rules with the server's own over them, validated now: a
+    // bad file stops the server at its start, not at its first run.
+    const auto& given = opt.alarm_defaults;
+    opt.alarm_defaults = detail::merged_rule_set_json(detail::default_rule_set_json(),
+                                                      given.is_null() ? nlohmann::json::object() : given, "alarm defaults");
   }
 
   void publish(const std::string& type, const nlohmann::json& data) {
@@ -104,6 +113,8 @@ struct AnalysisService::Impl {
 
 AnalysisService::AnalysisService(AnalysisOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
   impl_->ctl.emplace(Historian::open(impl_->opt.db_path, Historian::Mode::write));
+  impl_->alarms.emplace(impl_->opt.db_path, impl_->opt.alarm_defaults, impl_->opt.on_alarm_event, impl_->opt.alarm_tick_ms,
+                        impl_->opt.stale_check_s);
 }
 
 AnalysisService::~AnalysisService() { stop(); }
@@ -125,6 +136,7 @@ void AnalysisService::start() {
     if (I.opt.verbose && (requeued > 0 || queued > 0))
       std::fprintf(stderr, "ambdiag serve: %d interrupted jobs queued again, %d runs queued for analysis\n", requeued, queued);
   }
+  I.alarms->start();
   I.scheduler = std::thread([&I] { I.scheduler_loop(); });
   for (int k = 0; k < std::max(1, I.opt.workers); ++k) {
     I.workers.emplace_back([&I, k] {
@@ -152,6 +164,7 @@ void AnalysisService::stop() {
   if (I.scheduler.joinable()) I.scheduler.join();
   for (auto& t : I.workers) t.join();
   I.workers.clear();
+  if (I.alarms) I.alarms->stop();
 }
 
 void AnalysisService::notify_run_complete(const std::string& run_id) {
@@ -231,6 +244,29 @@ void AnalysisService::cancel_job(std::int64_t job_id, const std::string& by) {
   if (!job) throw NotFoundError("no job " + std::to_string(job_id));
   if (!h.cancel_job(job_id, "cancelled by " + (by.empty() ? std::string("an engineer") : by)))
     throw ConflictError("job " + std::to_string(job_id) + " is " + storage::to_string(job->status) + ": only a queued job can be cancelled");
+}
+
+const nlohmann::json& AnalysisService::alarm_defaults() const { return impl_->opt.alarm_defaults; }
+
+nlohmann::json AnalysisService::put_alarm_rules(const std::string& pump_id, const nlohmann::json& body, const std::string& by) {
+  return impl_->alarms->put_rules(pump_id, body, by);
+}
+
+nlohmann::json AnalysisService::acknowledge_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment) {
+  return impl_->alarms->acknowledge(alarm_id, by, comment);
+}
+
+nlohmann::json AnalysisService::shelve_alarm(std::int64_t alarm_id, std::int64_t minutes, const std::string& by,
+                                             const std::string& comment) {
+  return impl_->alarms->shelve(alarm_id, minutes, by, comment);
+}
+
+nlohmann::json AnalysisService::unshelve_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment) {
+  return impl_->alarms->unshelve(alarm_id, by, comment);
+}
+
+nlohmann::json AnalysisService::reset_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment) {
+  return impl_->alarms->reset(alarm_id, by, comment);
 }
 
 nlohmann::json AnalysisService::counters() const { return impl_->counters.to_json(); }

@@ -151,7 +151,17 @@ JobRunner::JobRunner(const AnalysisOptions& opt, std::string name, JobCounters& 
       counters_(counters),
       work_(work),
       stop_(stop),
-      h_(Historian::open(opt.db_path, Historian::Mode::write)) {}
+      h_(Historian::open(opt.db_path, Historian::Mode::write)),
+      alarms_(opt.alarm_defaults, opt.on_alarm_event) {}
+
+void JobRunner::evaluate_alarms(const std::string& pump_id) {
+  try {
+    const NormalPriorityScope normal;
+    with_retries([&] { return alarms_.catch_up(h_, pump_id); });
+  } catch (const std::exception& e) {  // evaluated at the next finished analysis or start
+    std::fprintf(stderr, "ambdiag serve: %s: alarm evaluation of pump %s: %s\n", name_.c_str(), pump_id.c_str(), e.what());
+  }
+}
 
 void JobRunner::run() {
   while (!stop_) {
@@ -266,6 +276,8 @@ void JobRunner::execute(const storage::Job& job) {
     if (failure) d["error"] = *failure;
     opt_.events->publish(ok ? "job.done" : "job.failed", d);
   }
+  // Done or failed (a failed analysis is poor data): the alarms follow.
+  if (job.key.kind == "analysis" && summary != "abandoned") evaluate_alarms(job.key.pump_id);
   if (opt_.verbose)
     std::fprintf(stderr, "ambdiag serve: %s (attempt %d): %s, %.2f s, %.2f CPU-s\n", what.c_str(), job.attempts,
                  summary.c_str(), wall, cpu);

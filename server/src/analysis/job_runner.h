@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "alarms/alarm_evaluator.h"
 #include "ambdiag/algorithms/diagnosis/operating_reference.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/metrics.h"
@@ -81,6 +82,9 @@ class JobRunner {
   // runs come in a row after its reference changes, and reading and parsing
   // the 1.7 MB document (17 ms) again for each would add 3 % to every run.
   const OperatingReference& reference_of(std::int64_t reference_job);
+  // After an analysis ended: the pump's alarms (alarm_evaluator.h says in
+  // which order and how a crash is recovered from).
+  void evaluate_alarms(const std::string& pump_id);
   const AnalysisOptions& opt_;
   std::string name_;
   JobCounters& counters_;
@@ -88,6 +92,7 @@ class JobRunner {
   const std::atomic<bool>& stop_;
   storage::Historian h_;
   std::optional<std::pair<std::int64_t, OperatingReference>> cached_reference_;
+  AlarmEvaluator alarms_;
 };
 
 }  // namespace ambdiag::server::detail

@@ -60,8 +60,19 @@ std::optional<json> pump_view(storage::Historian& h, const std::string& pump_id,
              static_cast<int>(ids.size()) >= proposed_reference_runs && proposed_reference_runs > 0) {
     j["reference"] = {{"runs", ids}, {"status", "proposed"}};
   }
-  // Health from the newest analysed run until alarms (issue 19) take over:
+  // Health: the worst active alarm (high or critical: alarm; low or
+  // medium: warning); without one, the newest analysed run's detection
+  // (a change detected that has not raised an alarm yet is a warning);
   // unknown without a model, a reference or a finished analysis.
+  int active_alarms = 0;
+  bool severe = false;
+  for (const auto& a : h.open_alarms(pump_id)) {
+    if (!a.active) continue;
+    ++active_alarms;
+    severe = severe || a.severity == "high" || a.severity == "critical";
+  }
+  const std::string worst = severe ? "alarm" : active_alarms > 0 ? "warning" : "";
+  j["active_alarms"] = active_alarms;
   std::string health = "unknown";
   if (summary && !summary->last_run_id.empty()) j["last_run_id"] = summary->last_run_id;
   for (auto it = runs.rbegin(); model && it != runs.rend(); ++it) {
@@ -75,12 +86,12 @@ std::optional<json> pump_view(storage::Historian& h, const std::string& pump_id,
       last["ratio"] = result["detection"].value("ratio", 0.0);
       if (detected && result["diagnosis"].is_object() && !result["diagnosis"]["faults"].empty())
         last["fault"] = result["diagnosis"]["faults"][0].value("fault", "");
-      health = detected ? "alarm" : "ok";
+      health = detected ? "warning" : "ok";
     }
     j["last_analysis"] = last;
     break;
   }
-  j["health"] = health;
+  j["health"] = worst.empty() ? health : worst;
   return j;
 }
 

@@ -65,5 +65,7 @@ void add_grafana_routes(RouteTable& t);
 // the web UI's files, the fleet in one reply, a run's model FRF (web_routes.cc).
 void add_web_routes(RouteTable& t);
 // openapi.json, metrics, events: service_routes.h (they need the server's state).
+// alarms, their journal, KPIs and each pump's alarm rules (alarm_routes.cc).
+void add_alarm_routes(RouteTable& t);
 
 }  // namespace ambdiag::server::detail

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -39,6 +40,16 @@ struct AnalysisOptions {
   EventBus* events = nullptr;
   // Job durations and CPU by kind are registered here (GET /metrics).
   MetricsRegistry* metrics = nullptr;
+  // Alarms (docs/service.md "Alarms"): the server's default rules, applied
+  // over the built-in ones rule by rule (`ambdiag serve --alarm-defaults
+  // FILE`); null: the built-in ones. Validated by the constructor
+  // (InputError naming the field).
+  nlohmann::json alarm_defaults = nullptr;
+  // Called after each alarm journal entry is committed, from the thread that
+  // made it (a hook for live updates); must be thread-safe. May be empty.
+  std::function<void(const nlohmann::json& event)> on_alarm_event;
+  int alarm_tick_ms = 1000;     // shelve expiry is checked this often
+  int stale_check_s = 30;       // stale data is checked this often
 };
 
 // A request refused for the state it finds: HTTP 409 (rest.md).
@@ -86,6 +97,19 @@ class AnalysisService {
   int adopt_explained_model(std::int64_t job_id, const std::string& by);
   // POST /jobs/{id}/cancel: a queued job is cancelled (ConflictError otherwise).
   void cancel_job(std::int64_t job_id, const std::string& by);
+
+  // Alarms (rest.md "Alarms"). The effective default rules (a full rule set).
+  const nlohmann::json& alarm_defaults() const;
+  // PUT .../alarm-rules: InputError naming the field; returns the pump's
+  // effective rules.
+  nlohmann::json put_alarm_rules(const std::string& pump_id, const nlohmann::json& body, const std::string& by);
+  // Each returns the alarm after the transition: NotFoundError for an
+  // unknown alarm, ConflictError where its state allows no such transition,
+  // InputError for a bad argument (a missing comment, minutes out of range).
+  nlohmann::json acknowledge_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment);
+  nlohmann::json shelve_alarm(std::int64_t alarm_id, std::int64_t minutes, const std::string& by, const std::string& comment);
+  nlohmann::json unshelve_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment);
+  nlohmann::json reset_alarm(std::int64_t alarm_id, const std::string& by, const std::string& comment);
 
   // Jobs finished, failed, CPU seconds by kind (for health and metrics).
   nlohmann::json counters() const;

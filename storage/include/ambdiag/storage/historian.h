@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "ambdiag/core/checksum.h"
+#include "ambdiag/storage/alarms.h"
 #include "ambdiag/storage/monitoring.h"
 #include "ambdiag/storage/service.h"
 #include "ambdiag/storage/trends.h"
@@ -295,6 +296,37 @@ class Historian {
   std::vector<TokenInfo> list_tokens();
   // False when no active token has that name.
   bool revoke_token(const std::string& name);
+
+  // --- alarms (alarms.h; historian_alarms.cc) ---
+  // A new version of the pump's alarm rules (registers the pump if new).
+  int put_alarm_rules(const std::string& pump_id, const std::string& rules_json, const std::string& created_by);
+  std::optional<AlarmRulesVersion> find_alarm_rules(const std::string& pump_id);
+  // Stores alarms, journal entries, memories and the cursor in one write
+  // transaction; fills in new alarm ids and the events' seq. Throws
+  // InputError when an open alarm of the same pump and rule exists (a second
+  // one while active) or an event names no alarm; nothing is stored then.
+  void apply_alarm_changes(AlarmChanges& changes);
+  std::optional<AlarmRecord> find_alarm(std::int64_t alarm_id);
+  // Newest first.
+  std::vector<AlarmRecord> list_alarms(const AlarmFilter& filter);
+  // The pump's alarms that are not `normal` (at most one per rule).
+  std::vector<AlarmRecord> open_alarms(const std::string& pump_id);
+  // Shelved alarms whose shelved_until is at or before `time` (ISO 8601 UTC).
+  std::vector<AlarmRecord> expired_shelves(const std::string& time);
+  // The alarm's journal, oldest first.
+  std::vector<AlarmEvent> alarm_history(std::int64_t alarm_id);
+  // The fleet's journal after `after_seq`, oldest first, at most `limit`.
+  std::vector<AlarmEvent> alarm_events(std::int64_t after_seq, int limit);
+  // Journal entries with from <= time < to (ISO 8601 UTC), oldest first.
+  std::vector<AlarmEvent> alarm_events_between(const std::string& from, const std::string& to);
+  std::int64_t last_alarm_seq();
+  // Each rule's evaluation memory for the pump: (rule, memory).
+  std::vector<std::pair<std::string, std::string>> alarm_memories(const std::string& pump_id);
+  std::optional<AlarmCursor> find_alarm_cursor(const std::string& pump_id);
+  std::vector<AlarmCursor> list_alarm_cursors();
+  // The pump's first complete identification run after (started_at, run_id)
+  // in that order; the first of all when `after` is empty.
+  std::optional<RunInfo> next_run_for_alarms(const std::string& pump_id, const std::optional<std::pair<std::string, std::string>>& after);
 
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
