@@ -117,10 +117,14 @@ try {
         await page.waitForSelector(row);
         assert.match(await page.textContent(row), /UNACK/);
         await page.screenshot({ path: `${shots}/pump.png`, fullPage: true });
+        // The header counts it as not acknowledged...
+        await page.waitForFunction(() => /▲ [1-9]/.test(document.querySelector('#alarm-count').textContent));
         await page.click(`${row} button[data-act="ack"]`);
         await page.fill('#alarm-comment', 'seen in the UI test');
         await page.click('#alarm-ok');
         await page.waitForFunction((sel) => /ack/.test(document.querySelector(sel)?.querySelector('[data-state]')?.dataset.state || '') && !/UNACK/.test(document.querySelector(sel).textContent), row, { timeout: 10000 });
+        // ... and no longer once the acknowledge came back on the event stream (alarm.transition).
+        await page.waitForSelector('#alarm-count', { state: 'hidden', timeout: 10000 });
         const after = await rest('GET', `/api/v1/alarms?pump_id=${encodeURIComponent(faulty)}`, 'viewer');
         const a = after.json.alarms.find((x) => x.alarm_id === open.alarm_id);
         assert.equal(a.state, 'ack_active');
