@@ -15,8 +15,10 @@ const STATE_TEXT = {
   out_of_service: '⊘ out of service',
   normal: 'normal',
 };
+// The state as a word and a symbol; the colour stays with the severity
+// (ISA-101), an unacknowledged alarm's state blinks until acknowledged.
 const stateHtml = (a) =>
-  `<span class="st ${a.state === 'unack_active' ? 'st-alarm unack' : a.active && a.state === 'ack_active' ? 'st-alarm' : a.state === 'unack_rtn' ? 'st-warning' : 'st-ok'}" data-state="${esc(a.state)}">${esc(STATE_TEXT[a.state] || a.state)}</span>`;
+  `<span class="st st-state${a.state.startsWith('unack') ? ' unack' : ''}${a.active ? ' active' : ''}" data-state="${esc(a.state)}">${esc(STATE_TEXT[a.state] || a.state)}</span>`;
 
 // A modal asking for a comment (and minutes for shelve); resolves null on cancel.
 function ask(title, withMinutes) {
