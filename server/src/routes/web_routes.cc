@@ -96,8 +96,8 @@ void send_web_file(RouteContext& c, const std::string& rel) {
   body << in.rdbuf();
   if (!in) throw NotFoundError("the web UI cannot read '" + rel + "'");
   c.res.status = 200;
-  c.res.set_content(body.str(),
-                    type);  // httplib gzips or brotli-encodes text types when the client accepts it
+  // httplib gzips or brotli-encodes the text types when the client accepts it.
+  c.res.set_content(body.str(), type);
 }
 
 // Every pump's view (rest.md's GET /pumps/{id}) and its run summary.
@@ -141,11 +141,10 @@ void add_web_routes(RouteTable& t) {
                        {},
                        "text/plain"});
   files.description =
-      "Served from the UI's folder with ETag and Cache-Control: no-cache (304 on If-None-Match), compressed "
-      "when the "
-      "client accepts it; names of letters, digits, '.', '_', '-' only (400 otherwise, so no '..'), nothing "
-      "outside "
-      "the folder.";
+      "Served from the UI's folder with the content type of its extension, ETag and Cache-Control: no-cache "
+      "(304 on If-None-Match), compressed when the client accepts it; names of letters, digits, '.', '_', "
+      "'-' "
+      "only (400 otherwise, so no '..'), nothing outside the folder.";
   t.add({"GET", "/api/v1/fleet", Role::viewer,
          "every pump's view (as GET /api/v1/pumps/{pump_id}) with its run count, in one reply",
          [](RouteContext& c, const PathParams&) { get_fleet(c); }});
