@@ -12,6 +12,7 @@ namespace ambdiag::testing {
 
 class WebUiTest : public FleetTest {
  protected:
+  std::string pumps_;  // the pumps streamed, as ui_test.mjs takes them
   // Skips (naming what is missing; the test returns on IsSkipped()) where node, chromium or web/node_modules
   // are not installed: deploy/install-deps.sh installs all three.
   void require_browser() {
@@ -23,12 +24,14 @@ class WebUiTest : public FleetTest {
       GTEST_SKIP() << "web/node_modules missing (deploy/install-deps.sh runs npm ci in web/)";
   }
 
-  // Two pumps of the reference machine, the second's piston worn 1.5 x from
-  // its 4th run; then, where the server has alarms, waits for that pump's.
-  std::string set_up_fleet() {
-    const auto runs = run_fleet({{"W-1", reference_model, 4, 2.0, 1.0, 3, {}},
-                                 {"W-2", reference_model, 4, 2.0, 1.0, 4, {"balance_piston_wear=1.5@run4"}}},
-                                2, 0.1);
+  // Pumps of the reference machine: W-2's piston worn 1.5 x from its 4th
+  // run, and with `healthy_too` W-1, healthy; then waits for W-2's alarm.
+  std::string set_up_fleet(bool healthy_too) {
+    std::vector<PumpSpec> pumps = {
+        {"W-2", reference_model, 4, 2.0, 1.0, 4, {"balance_piston_wear=1.5@run4"}}};
+    if (healthy_too) pumps.push_back({"W-1", reference_model, 4, 2.0, 1.0, 3, {}});
+    pumps_ = healthy_too ? "W-1,W-2" : "W-2";
+    const auto runs = run_fleet(pumps, 2, 0.1);
     std::string faulty_run;
     for (const auto& o : runs)
       if (o.pump == "W-2" && o.run == 4) faulty_run = o.run_id;
@@ -36,7 +39,7 @@ class WebUiTest : public FleetTest {
     const auto deadline = std::chrono::steady_clock::now() + 10s;
     while (std::chrono::steady_clock::now() < deadline) {
       const auto r = get("/api/v1/alarms?pump_id=W-2");
-      if (!r || r->status != 200 || !json_of(r)["alarms"].empty()) break;
+      if (r && r->status == 200 && !json_of(r)["alarms"].empty()) break;
       std::this_thread::sleep_for(200ms);
     }
     return faulty_run;
@@ -48,7 +51,7 @@ class WebUiTest : public FleetTest {
     env["AMBDIAG_VIEWER_TOKEN"] = tokens["viewer"];
     env["AMBDIAG_OPERATOR_TOKEN"] = tokens["operator"];
     env["AMBDIAG_ENGINEER_TOKEN"] = tokens["engineer"];
-    env["AMBDIAG_PUMPS"] = "W-1,W-2";
+    env["AMBDIAG_PUMPS"] = pumps_;
     env["AMBDIAG_FAULTY_PUMP"] = "W-2";
     env["AMBDIAG_FAULTY_RUN"] = faulty_run;
     env["AMBDIAG_SCREENSHOTS"] = AMBDIAG_SCREENSHOTS;
