@@ -106,9 +106,6 @@ int run_serve(const std::vector<std::string>& argv) {
   opt.events = &events;
   aopt.events = &events;
   aopt.metrics = &metrics;
-  // Every alarm transition (its journal entry) on the event stream, so the
-  // web UI's alarm views follow without polling.
-  aopt.on_alarm_event = [&events](const nlohmann::json& e) { events.publish("alarm.transition", e); };
   std::optional<server::AnalysisService> analysis;
   if (aopt.workers > 0) {
     analysis.emplace(aopt);

@@ -117,6 +117,14 @@ struct RestServer::Impl {
                           out.push_back({{key.first, key.second}, static_cast<double>(n)});
                         return out;
                       });
+    metrics.collected("ambdiag_alarms_active", "Active alarms (condition holds or latched) by severity, every server on the database.",
+                      MetricType::gauge, {"severity"}, [this] {
+                        auto by = pool.acquire()->count_active_alarms_by_severity();
+                        std::vector<MetricSample> out;
+                        for (const char* sev : {"low", "medium", "high", "critical"})  // every severity, 0 included
+                          out.push_back({{sev}, static_cast<double>(by[sev])});
+                        return out;
+                      });
     metrics.collected_value("ambdiag_event_streams", "Event streams (GET /api/v1/events) open now.", MetricType::gauge,
                             [this] { return static_cast<double>(service.open_streams.load()); });
     metrics.collected_value("ambdiag_event_streams_dropped_total", "Event streams closed because their client did not keep up.",

@@ -4,6 +4,8 @@
 // one open alarm per pump and rule (the partial unique index) and an
 // append-only journal (triggers), whose seq only grows (AUTOINCREMENT never
 // reuses a number, even after the newest row's transaction rolled back).
+#include <map>
+
 #include "ambdiag/storage/historian.h"
 #include "historian_impl.h"
 
@@ -228,6 +230,14 @@ std::vector<AlarmEvent> Historian::alarm_events_between(const std::string& from,
   auto& s = impl_->stmt("SELECT " AMBDIAG_EVENT_COLUMNS " FROM alarm_events WHERE time >= ? AND time < ? ORDER BY seq");
   s.bind(1, from).bind(2, to);
   return all_rows(s, read_event_row);
+}
+
+std::map<std::string, std::int64_t> Historian::count_active_alarms_by_severity() {
+  auto& s = impl_->stmt("SELECT severity, count(*) FROM alarms WHERE active = 1 GROUP BY severity");
+  std::map<std::string, std::int64_t> out;
+  while (s.step()) out[s.col_text(0)] = s.col_int(1);
+  s.reset();
+  return out;
 }
 
 std::int64_t Historian::last_alarm_seq() {

@@ -13,6 +13,7 @@
 // fleet_slow_test.cc the fleet (label slow).
 #pragma once
 
+#include <functional>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -129,8 +130,13 @@ class FleetTest : public ServiceTest {
   // while its later runs are still streaming (so those are analysed on
   // arrival against it, as on a real site; a run that arrives first is
   // analysed again). Returns every run's outcome against the reference.
+  // Called once the server is up, before anything is streamed (e.g. to
+  // open an event stream).
+  std::function<void()> after_start;
+
   std::vector<RunOutcome> run_fleet(const std::vector<PumpSpec>& pumps, size_t parallel, double interval_s) {
     start_service();
+    if (after_start) after_start();
     for (const auto& p : pumps) {
       const auto m = put("/api/v1/pumps/" + p.id + "/model", read_file_bytes(p.model.string()));
       EXPECT_EQ(m->status, 200) << m->body;

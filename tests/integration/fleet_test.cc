@@ -1,5 +1,6 @@
 // The fleet check of issue 16 (fleet_fixture.h), small: the second machine
 // is a valid, different pump, and one pump of it develops a fault.
+#include "event_stream.h"
 #include "fleet_fixture.h"
 
 #include "ambdiag/storage/monitoring.h"
@@ -43,6 +44,8 @@ TEST_F(FleetTest, TheSecondMachineIsAnotherValidPump) {
 TEST_F(FleetTest, OneSecondMachinePumpDevelopsAWornPiston) {
   // Runs back to back (0.1 s interval): the reference is set after the
   // fourth run is in, the pump's runs are all analysed again against it.
+  std::unique_ptr<EventStream> live;  // a browser's view of the same: alarm transitions as live updates
+  after_start = [&] { live = std::make_unique<EventStream>(port, tokens.at("viewer")); };
   const auto runs = run_fleet({{"S-1", second_model, 4, 3.0, 1.5, 7, {"balance_piston_wear=1.5@run4"}}}, 1, 0.1);
   ASSERT_EQ(runs.size(), 4u);
   const Counts c = check(runs);
@@ -78,6 +81,15 @@ TEST_F(FleetTest, OneSecondMachinePumpDevelopsAWornPiston) {
   const auto pump = json_of(get("/api/v1/pumps/S-1"));
   EXPECT_GE(pump["active_alarms"].get<int>(), 1);
   EXPECT_EQ(pump["health"], "warning") << "a medium alarm";
+
+  // The raise went out as a live update, and /metrics counts the active alarm.
+  const auto raised = live->wait_for("alarm.transition", "to", "unack_active", 10s);
+  ASSERT_TRUE(raised) << live->seen();
+  EXPECT_EQ((*raised)["pump_id"], "S-1");
+  EXPECT_EQ((*raised)["alarm_id"], alarm["alarm_id"]);
+  const auto metrics = get("/metrics", "");  // no token
+  ASSERT_EQ(metrics->status, 200);
+  EXPECT_NE(metrics->body.find("ambdiag_alarms_active{severity=\"medium\"} 1\n"), std::string::npos) << metrics->body;
 
   // An operator acknowledges it, a viewer cannot; the history says who.
   const std::string url = "/api/v1/alarms/" + std::to_string(alarm["alarm_id"].get<int>());

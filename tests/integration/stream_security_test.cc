@@ -14,6 +14,8 @@ namespace {
 // 16 bytes that, as 4 float32, are finite: a run made of them is valid and
 // its samples are recognisable in a capture.
 constexpr char kMarker[] = "AMBDIAGSECRET123";
+constexpr char kPlainMarker[] = "AMBDIAGPLAIN4567";  // the control's, in clear on purpose
+constexpr char kRogueMarker[] = "AMBDIAGROGUE8901";  // the refused agents'
 
 class SecureStreamTest : public PkiTest {
  protected:
@@ -38,12 +40,13 @@ class SecureStreamTest : public PkiTest {
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, agent_env, (dir / ("agent" + std::to_string(log_n++) + ".log")).string());
   }
-  // A run of pump P-101 whose samples are the marker over and over.
-  fs::path marker_run(const std::string& run_id, double seconds = 1.0) {
+  // A run of pump P-101 whose samples are `marker` (16 bytes) over and
+  // over. Each test has its own marker: ctest runs the tests of this file
+  // at once, and a capture sees every test's loopback traffic.
+  fs::path marker_run(const std::string& run_id, const char (&marker)[17], double seconds = 1.0) {
     const fs::path out = short_run(seconds, run_id);
     RunRecording run = read_run(out.string());
-    static_assert(sizeof(kMarker) - 1 == 4 * sizeof(float));
-    for (size_t i = 0; i < run.samples.size(); ++i) std::memcpy(&run.samples[i], kMarker + 4 * (i % 4), sizeof(float));
+    for (size_t i = 0; i < run.samples.size(); ++i) std::memcpy(&run.samples[i], marker + 4 * (i % 4), sizeof(float));
     write_run(out.string(), run);
     return out;
   }
@@ -57,7 +60,7 @@ class SecureStreamTest : public PkiTest {
 bool contains(const std::string& bytes, const char* needle) { return bytes.find(needle) != std::string::npos; }
 
 TEST_F(SecureStreamTest, EnrolledAgentStreamsARunCompleteAndNoSampleCrossesInClear) {
-  const fs::path run_dir = marker_run("secure/run-1");
+  const fs::path run_dir = marker_run("secure/run-1", kMarker);
   LoopbackCapture capture(dir, "udp");
   auto server = start_secure_server();
   ASSERT_GT(rest_port(*server), 0) << server->log();
@@ -79,14 +82,14 @@ TEST_F(SecureStreamTest, EnrolledAgentStreamsARunCompleteAndNoSampleCrossesInCle
 
 // The control: the same capture does find the marker when security is off.
 TEST_F(SecureStreamTest, PlainModeSendsTheSamplesInClear) {
-  const fs::path run_dir = marker_run("plain/run-1");
+  const fs::path run_dir = marker_run("plain/run-1", kPlainMarker);
   LoopbackCapture capture(dir, "udp");
   if (!capture.available()) GTEST_SKIP() << "cannot capture on loopback: " << capture.why();
   auto server = start_server();
   ASSERT_GT(rest_port(*server), 0) << server->log();
   auto a = start_agent(run_dir, {"--fast", "--timeout", "30"});
   ASSERT_EQ(a->wait(60s), 0) << a->log();
-  EXPECT_TRUE(contains(capture.stop(), kMarker)) << "the control failed: the capture does not see plain samples";
+  EXPECT_TRUE(contains(capture.stop(), kPlainMarker)) << "the control failed: the capture does not see plain samples";
 }
 
 // Nothing of an agent without the right credentials is stored: no
@@ -104,11 +107,11 @@ TEST_F(SecureStreamTest, AgentsWithoutRightsGetNothingStored) {
 
   const std::vector<std::string> as_p101 = {"--partition", partition, "--partition-per-pump", "--pump", "P-101",
                                             "--timeout", "4"};
-  auto no_cert = agent(marker_run("rogue/no-cert", 0.5), env, as_p101);
-  auto other_ca = agent(marker_run("rogue/other-ca", 0.5), secure_env(other / "agents" / "P-101"), as_p101);
-  auto p2_as_p101 = agent(marker_run("rogue/p2-perms", 0.5), secure_env(pki_dir / "agents" / "P2"), as_p101);
+  auto no_cert = agent(marker_run("rogue/no-cert", kRogueMarker, 0.5), env, as_p101);
+  auto other_ca = agent(marker_run("rogue/other-ca", kRogueMarker, 0.5), secure_env(other / "agents" / "P-101"), as_p101);
+  auto p2_as_p101 = agent(marker_run("rogue/p2-perms", kRogueMarker, 0.5), secure_env(pki_dir / "agents" / "P2"), as_p101);
   // P2's own partition, a run that names pump P-101.
-  auto p2_claims = agent(marker_run("rogue/p2-claims", 0.5), secure_env(pki_dir / "agents" / "P2"),
+  auto p2_claims = agent(marker_run("rogue/p2-claims", kRogueMarker, 0.5), secure_env(pki_dir / "agents" / "P2"),
                          {"--partition", partition + "/P2", "--timeout", "4"});
 
   EXPECT_EQ(no_cert->wait(30s), 1) << no_cert->log();

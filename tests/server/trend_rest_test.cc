@@ -7,10 +7,12 @@
 #include <httplib.h>
 
 #include <cmath>
+#include <tuple>
 
 #include "../storage/historian_fixture.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
+#include "alarms/alarm_state.h"
 #include "test_support.h"
 
 namespace ambdiag::server {
@@ -148,7 +150,15 @@ TEST_F(TrendRest, PointsOldestFirstWithRunAndReferenceBand) {
   EXPECT_NEAR(band["mean"].get<double>(), 49.9975, 1e-9);
   // Deviations -0.0075, 0.0025, 0.0125, -0.0075; sd with n - 1.
   EXPECT_NEAR(band["sd"].get<double>(), std::sqrt((2 * 0.0075 * 0.0075 + 0.0025 * 0.0025 + 0.0125 * 0.0125) / 3.0), 1e-9);
-  EXPECT_FALSE(mode.contains("limits"));  // none before the alarm rules
+  // The alarm limits drawn on each series (the built-in rules: the mode's
+  // relative to this band, detection at its ratio levels; alarm_limits_test
+  // checks the numbers against the rules).
+  ASSERT_TRUE(mode.contains("limits")) << mode.dump();
+  EXPECT_EQ(mode["limits"]["rule"], "mode.*.f_hz");
+  for (const auto& line : mode["limits"]["lines"])  // every line at least the minimum shift away from the mean
+    EXPECT_GE(std::abs(line["value"].get<double>() - band["mean"].get<double>()), 0.01 * band["mean"].get<double>()) << line;
+  ASSERT_TRUE(j["series"][1].contains("limits"));
+  EXPECT_EQ(j["series"][1]["limits"]["rule"], "detection");
   EXPECT_FALSE(j["series"][1]["points"][0].contains("sd"));
 }
 
@@ -284,13 +294,46 @@ TEST_F(TrendRest, GrafanaDataSourceAnswersTheJsonApi) {
   EXPECT_EQ(j[0]["datapoints"].size(), 30u);
   EXPECT_EQ(j[0]["datapoints"][0][1], kT0 / 1'000'000);
 
-  r = post("/api/v1/grafana/annotations", {{"range", q["range"]}, {"annotation", {{"name", "detections"}, {"query", "P-1"}}}});
+  // Annotations: the alarm journal. P-1's wear alarm raised on day 25 and
+  // acknowledged on day 26, in the range.
+  const auto journal = [&](const std::string& pump, std::int64_t day, const std::vector<std::tuple<std::string, std::string, std::string, std::string>>& steps) {
+    storage::AlarmChanges ch;
+    ch.pump_id = pump;
+    storage::AlarmRecord a;
+    a.pump_id = pump;
+    a.rule = "fault.impeller_seal_wear";
+    a.severity = "high";
+    a.state = "ack_active";
+    a.active = a.acknowledged = true;
+    a.raised_at = a.updated_at = storage::utc_from_ns(kT0 + day * kDayNs);
+    a.run_id = pump + "/d" + std::to_string(day);
+    a.message = "wear";
+    ch.alarms.push_back(a);
+    for (size_t i = 0; i < steps.size(); ++i) {
+      storage::AlarmEvent e;
+      std::tie(e.kind, e.from, e.to, e.by) = steps[i];
+      e.time = detail::iso_ms(kT0 + (day + static_cast<std::int64_t>(i)) * kDayNs);
+      e.comment = e.kind == "ack" ? "seen, renewal planned" : "";
+      e.run_id = e.kind == "raise" ? a.run_id : "";
+      ch.events.emplace_back(0, e);
+    }
+    h_->apply_alarm_changes(ch);
+  };
+  journal("P-1", 25, {{"raise", "normal", "unack_active", "server"}, {"ack", "unack_active", "ack_active", "ana"}});
+  r = post("/api/v1/grafana/annotations", {{"range", q["range"]}, {"annotation", {{"name", "alarms"}, {"query", "P-1"}}}});
   ASSERT_EQ(r->status, 200) << r->body;
   j = body(r);
-  ASSERT_EQ(j.size(), 5u);  // days 25..29
+  ASSERT_EQ(j.size(), 2u) << j.dump();
   EXPECT_EQ(j[0]["time"], (kT0 + 25 * kDayNs) / 1'000'000);
-  EXPECT_NE(j[0]["text"].get<std::string>().find("P-1/d25"), std::string::npos);
-  EXPECT_EQ(j[0]["annotation"]["name"], "detections");
+  EXPECT_EQ(j[0]["title"], "P-1: fault.impeller_seal_wear");
+  EXPECT_NE(j[0]["text"].get<std::string>().find("P-1/d25"), std::string::npos) << j[0];
+  EXPECT_EQ(j[0]["annotation"]["name"], "alarms");
+  EXPECT_NE(j[1]["text"].get<std::string>().find("by ana (seen, renewal planned)"), std::string::npos) << j[1];
+  EXPECT_EQ(j[1]["tags"], json({"P-1", "fault.impeller_seal_wear", "ack", "high"}));
+  // The range's end is inclusive to the millisecond; a narrower one keeps the raise only.
+  json narrow = q["range"];
+  narrow["to"] = storage::utc_from_ns(kT0 + 25 * kDayNs);
+  EXPECT_EQ(body(post("/api/v1/grafana/annotations", {{"range", narrow}, {"annotation", {{"query", "P-1"}}}})).size(), 1u);
 
   // Bad bodies: named.
   const auto bad = [&](const json& b, int status, const std::string& what) {

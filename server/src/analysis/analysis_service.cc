@@ -46,6 +46,13 @@ struct AnalysisService::Impl {
 
   explicit Impl(AnalysisOptions o) : opt(std::move(o)) {
     if (opt.metrics) counters.attach(*opt.metrics);
+    // Every alarm journal entry also goes out as a live update
+    // ("alarm.transition", GET /api/v1/events), after its commit.
+    if (opt.events)
+      opt.on_alarm_event = [given = opt.on_alarm_event, bus = opt.events](const nlohmann::json& e) {
+        if (given) given(e);
+        bus->publish("alarm.transition", e);
+      };
     // The built-in rules with the server's own over them, validated now: a
     // bad file stops the server at its start, not at its first run.
     const auto& given = opt.alarm_defaults;

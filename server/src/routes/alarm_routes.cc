@@ -45,11 +45,6 @@ std::string comment_of(const json& body, const std::string& what) {
 }
 
 // The defaults the rules' GET shows: the running service's, else the built-in ones.
-json defaults_of(const RouteContext& c) {
-  return c.opt.analysis ? c.opt.analysis->alarm_defaults()
-                        : merged_rule_set_json(default_rule_set_json(), json::object(), "alarm defaults");
-}
-
 void get_alarms(RouteContext& c) {
   storage::AlarmFilter f;
   if (c.req.has_param("pump_id")) f.pump_id = c.req.get_param_value("pump_id");
@@ -149,7 +144,7 @@ void get_rules(RouteContext& c, const PathParams& p) {
   const std::string& pump_id = p.at("pump_id");
   auto h = c.pool.acquire();
   if (!h->find_pump(pump_id)) return send_error(c.res, 404, "no pump '" + pump_id + "'");
-  send_json(c.res, 200, alarm_rules_view(*h, pump_id, defaults_of(c)));
+  send_json(c.res, 200, alarm_rules_view(*h, pump_id, alarm_defaults_of(c)));
 }
 
 void put_rules(RouteContext& c, const PathParams& p) {
@@ -163,6 +158,11 @@ void put_rules(RouteContext& c, const PathParams& p) {
 }
 
 }  // namespace
+
+json alarm_defaults_of(const RouteContext& c) {
+  return c.opt.analysis ? c.opt.analysis->alarm_defaults()
+                        : merged_rule_set_json(default_rule_set_json(), json::object(), "alarm defaults");
+}
 
 void add_alarm_routes(RouteTable& t) {
   using storage::Role;

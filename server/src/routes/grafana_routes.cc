@@ -3,11 +3,13 @@
 // "SimpleJSON" read, under /api/v1/grafana. Metrics are "PUMP:SERIES";
 // queries are answered from the same trend storage as GET .../trends, with
 // maxDataPoints kept by the same min/max buckets. The POSTs only read.
+#include <map>
 #include <set>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/storage/historian.h"
+#include "alarms/alarm_state.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -112,14 +114,16 @@ void query(RouteContext& c) {
   send_json(c.res, 200, out);
 }
 
-// Runs where detection fired (detection.ratio > 1), of the pump named in
-// annotation.query or of every pump. (The alarm journal will replace them.)
+// The alarm journal as annotations (rest.md: "alarms as annotations"): every
+// transition in the range (raised, acknowledged with its comment, returned,
+// shelved, ...) of the pump named in annotation.query, or of every pump;
+// tagged with the pump, the rule, the kind of transition and the alarm's
+// severity, so a dashboard can filter them. At most kMaxAnnotations, oldest
+// first.
 void annotations(RouteContext& c) {
   const json body = parse_body(c.req, "grafana annotations");
   if (!body.is_object()) throw InputError("grafana annotations: the body is not an object");
-  storage::TrendQuery q = range_of(body);
-  q.raw = true;
-  q.max_points = kMaxAnnotations;
+  const storage::TrendQuery q = range_of(body);
   std::string only;
   const json annotation = body.value("annotation", json::object());
   if (!annotation.is_object()) throw InputError("annotation: not an object");
@@ -130,22 +134,29 @@ void annotations(RouteContext& c) {
   auto h = c.pool.acquire();
   auto snap = h->snapshot();
   if (!only.empty() && !h->find_pump(only)) throw NotFoundError("annotation.query: no pump '" + only + "'");
+  // The journal's times are ISO 8601 with milliseconds: the range as well,
+  // so they compare as text; `to` is inclusive, the query's end exclusive.
+  const std::string from = iso_ms(std::max<std::int64_t>(q.from_ns, 0));
+  const std::string to = iso_ms(q.to_ns == std::numeric_limits<std::int64_t>::max() ? q.to_ns : q.to_ns + 1'000'000);
+  std::map<std::int64_t, std::string> severity;  // by alarm id
   json out = json::array();
-  for (const auto& p : h->list_pumps()) {
-    if (!only.empty() && p.pump_id != only) continue;
-    const auto t = h->query_trend(p.pump_id, "detection.ratio", q);
-    if (!t) continue;
-    for (const auto& pt : t->points) {
-      if (!(pt.value > 1.0)) continue;
-      char ratio[32];
-      std::snprintf(ratio, sizeof ratio, "%.3g", pt.value);
-      out.push_back({{"annotation", annotation},
-                     {"time", ms_of(pt.time_ns)},
-                     {"timeEnd", ms_of(pt.time_ns)},
-                     {"title", "change detected: " + p.pump_id},
-                     {"text", "run " + pt.run_id + ": detection statistic " + ratio + " x its threshold"},
-                     {"tags", {p.pump_id, "detection"}}});
+  for (const auto& e : h->alarm_events_between(from, to)) {
+    if (!only.empty() && e.pump_id != only) continue;
+    if (out.size() >= static_cast<size_t>(kMaxAnnotations)) break;
+    if (!severity.count(e.alarm_id)) {
+      const auto a = h->find_alarm(e.alarm_id);
+      severity[e.alarm_id] = a ? a->severity : "";
     }
+    const std::int64_t ms = storage::ns_from_utc(e.time, "alarm event time") / 1'000'000;
+    std::string text = e.kind + ": " + e.from + " -> " + e.to + " by " + e.by;
+    if (!e.comment.empty()) text += " (" + e.comment + ")";
+    if (!e.run_id.empty()) text += ", run " + e.run_id;
+    out.push_back({{"annotation", annotation},
+                   {"time", ms},
+                   {"timeEnd", ms},
+                   {"title", e.pump_id + ": " + e.rule},
+                   {"text", text},
+                   {"tags", {e.pump_id, e.rule, e.kind, severity[e.alarm_id]}}});
   }
   send_json(c.res, 200, out);
 }
@@ -206,7 +217,7 @@ void add_grafana_routes(RouteTable& t) {
             [](RouteContext& c, const PathParams&) { query(c); });
   read_post("/api/v1/grafana/variable", "Grafana JSON data source: a variable's values (the pumps, or a pump's series)",
             [](RouteContext& c, const PathParams&) { variable(c); });
-  read_post("/api/v1/grafana/annotations", "Grafana: runs where detection fired, as annotations",
+  read_post("/api/v1/grafana/annotations", "Grafana: the alarm journal (every transition) as annotations",
             [](RouteContext& c, const PathParams&) { annotations(c); });
 }
 

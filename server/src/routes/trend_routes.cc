@@ -78,14 +78,16 @@ void trends(RouteContext& c, const std::string& pump_id) {
   auto h = c.pool.acquire();
   auto snap = h->snapshot();  // every series from one committed state
   if (!h->find_pump(pump_id)) throw NotFoundError("no pump '" + pump_id + "'");
+  const json defaults = alarm_defaults_of(c);
   json out = json::array();
   bool truncated = false;
   for (const auto& name : names) {
     const auto t = h->query_trend(pump_id, name, q);
     if (!t) not_found_series(pump_id, name);
     json j = trend_json(*t);
-    if (auto band = reference_band(*h, pump_id, name)) j["reference"] = std::move(*band);
-    if (auto limits = series_limits(*h, pump_id, name)) j["limits"] = std::move(*limits);
+    const auto band = reference_band(*h, pump_id, name);
+    if (band) j["reference"] = *band;
+    if (auto limits = series_limits(*h, pump_id, name, defaults, band)) j["limits"] = std::move(*limits);
     truncated = truncated || t->truncated;
     out.push_back(std::move(j));
   }

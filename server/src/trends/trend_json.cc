@@ -2,6 +2,9 @@
 
 #include <cmath>
 
+#include "alarms/alarm_evaluator.h"
+#include "alarms/alarm_limits.h"
+
 namespace ambdiag::server::detail {
 
 using nlohmann::json;
@@ -44,7 +47,10 @@ std::optional<json> reference_band(storage::Historian& h, const std::string& pum
   return j;
 }
 
-std::optional<json> series_limits(storage::Historian&, const std::string&, const std::string&) { return std::nullopt; }
+std::optional<json> series_limits(storage::Historian& h, const std::string& pump_id, const std::string& series, const json& defaults,
+                                  const std::optional<json>& reference) {
+  return alarm_limits(pump_rule_set(h, pump_id, defaults), series, reference);
+}
 
 std::optional<std::string> utc_from_s(double t_s) {
   if (!std::isfinite(t_s) || std::fabs(t_s) > 9.2e9) return std::nullopt;

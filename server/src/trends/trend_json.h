@@ -24,10 +24,12 @@ nlohmann::json trend_json(const storage::Trend& t);
 // series no value (monitoring series: no runs).
 std::optional<nlohmann::json> reference_band(storage::Historian& h, const std::string& pump_id, const std::string& series);
 
-// The limits a chart draws for the series (alarm rules). Nothing yet: the
-// alarm rules fill it when they are merged (the "limits" key is left out
-// while this returns nullopt).
-std::optional<nlohmann::json> series_limits(storage::Historian& h, const std::string& pump_id, const std::string& series);
+// The limits a chart draws for the series: the pump's effective alarm rule
+// that watches it (alarms/alarm_limits.h), with `defaults` the server's
+// default rules and `reference` the series' reference band; nullopt (the
+// "limits" key left out) where no enabled rule watches the series.
+std::optional<nlohmann::json> series_limits(storage::Historian& h, const std::string& pump_id, const std::string& series,
+                                            const nlohmann::json& defaults, const std::optional<nlohmann::json>& reference);
 
 // Seconds since the epoch as ISO 8601 UTC; nullopt outside what an int64 of
 // ns holds (1677..2262).

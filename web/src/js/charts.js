@@ -55,18 +55,13 @@ function bandPlugin(band, limits) {
   };
 }
 
-// The numeric limits found in a series' `limits` (the alarm side's shape:
-// objects or arrays with raise / clear / high / low values).
+// The lines of a series' `limits` (docs/service.md "Trends": {"rule",
+// "lines": [{"kind": "raise"|"clear", "severity"?, "value"}]}), labelled
+// with the kind and severity.
 export function limitLines(limits) {
-  const out = [];
-  const visit = (v, name) => {
-    if (typeof v === 'number' && Number.isFinite(v)) out.push({ value: v, label: name });
-    else if (Array.isArray(v)) v.forEach((x, i) => visit(x, x?.rule || x?.name || name || `limit ${i + 1}`));
-    else if (v && typeof v === 'object')
-      for (const [k, x] of Object.entries(v)) if (!['rule', 'name', 'severity', 'unit'].includes(k)) visit(x, (name ? name + ' ' : '') + k);
-  };
-  visit(limits, '');
-  return out;
+  return (limits?.lines || [])
+    .filter((l) => Number.isFinite(l.value))
+    .map((l) => ({ value: l.value, label: `${limits.rule ? limits.rule + ' ' : ''}${l.kind}${l.severity ? ' ' + l.severity : ''}` }));
 }
 
 // One trend chart: time (s) and value arrays, optional min/max envelope

@@ -320,6 +320,9 @@ class Historian {
   // Journal entries with from <= time < to (ISO 8601 UTC), oldest first.
   std::vector<AlarmEvent> alarm_events_between(const std::string& from, const std::string& to);
   std::int64_t last_alarm_seq();
+  // Active alarms (the condition holds or is latched) by severity, for
+  // GET /metrics; severities without one are absent.
+  std::map<std::string, std::int64_t> count_active_alarms_by_severity();
   // Each rule's evaluation memory for the pump: (rule, memory).
   std::vector<std::pair<std::string, std::string>> alarm_memories(const std::string& pump_id);
   std::optional<AlarmCursor> find_alarm_cursor(const std::string& pump_id);

@@ -1,0 +1,90 @@
+// GET /api/v1/events read by a real client on its own thread, as a
+// browser's EventSource would (the token in the query): the integration
+// tests wait for the events the server publishes.
+#pragma once
+
+#include <httplib.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <optional>
+#include <regex>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace ambdiag::testing {
+
+using namespace std::chrono_literals;
+
+// The events a stream delivers, parsed, read on their own thread.
+class EventStream {
+ public:
+  EventStream(int port, const std::string& token) : client_("127.0.0.1", port) {
+    thread_ = std::thread([this, token] {
+      auto& c = client_;
+      c.set_read_timeout(30, 0);
+      std::string pending;
+      c.Get(
+          "/api/v1/events?access_token=" + token, httplib::Headers{},
+          [&](const httplib::Response& r) {
+            connected_ = r.status == 200;
+            return true;
+          },
+          [&](const char* d, size_t n) {
+            pending.append(d, n);
+            for (size_t end; (end = pending.find("\n\n")) != std::string::npos; pending.erase(0, end + 2)) {
+              std::smatch m;
+              const std::string frame = pending.substr(0, end + 1);
+              if (std::regex_search(frame, m, std::regex("event: (.*)\ndata: (.*)\n"))) {
+                std::lock_guard l(mu_);
+                events_.push_back({m[1], nlohmann::json::parse(m[2].str())});
+              }
+            }
+            return !stop_;
+          });
+    });
+  }
+  bool wait_connected() {
+    for (int i = 0; i < 500 && !connected_; ++i) std::this_thread::sleep_for(10ms);
+    return connected_;
+  }
+  ~EventStream() {
+    stop_ = true;
+    client_.stop();  // now, not at the next heartbeat
+    thread_.join();
+  }
+  // The first event of `type` whose data holds `key` == `value`.
+  std::optional<nlohmann::json> wait_for(const std::string& type, const std::string& key,
+                                         const std::string& value, std::chrono::seconds timeout = 120s) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      {
+        std::lock_guard l(mu_);
+        for (const auto& [t, d] : events_)
+          if (t == type && d.value(key, nlohmann::json()).is_string() && d[key] == value) return d;
+      }
+      std::this_thread::sleep_for(50ms);
+    }
+    return std::nullopt;
+  }
+  std::string seen() {
+    std::lock_guard l(mu_);
+    std::string s;
+    for (const auto& [t, d] : events_) s += t + " " + d.dump() + "\n";
+    return s;
+  }
+
+ private:
+  httplib::Client client_;
+  std::thread thread_;
+  std::mutex mu_;
+  std::vector<std::pair<std::string, nlohmann::json>> events_;
+  std::atomic<bool> stop_{false}, connected_{false};
+};
+
+}  // namespace ambdiag::testing
