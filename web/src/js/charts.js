@@ -66,30 +66,42 @@ export function limitLines(limits) {
 
 // One trend chart: time (s) and value arrays, optional min/max envelope
 // (buckets), the reference band and limits; `onPoint(i)` on a click.
-export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, sync, onPoint, height = 190 }) {
+export function trendChart(el, { title, unit, t, v, lo, hi, band, limits, allLimits, sync, onPoint, height = 190 }) {
   const series = [{}, { label: title, stroke: INK[0], width: 1.25, points: { show: t.length < 400, size: 5, fill: '#1b1b1b' } }];
   const data = [t, v];
   if (lo && hi) {
     series.push({ label: 'min', stroke: '#9a9a9a', width: 1 }, { label: 'max', stroke: '#9a9a9a', width: 1 });
     data.push(lo, hi);
   }
+  // The y range: the data and the band, and (allLimits) every limit, or the
+  // limits close enough to keep the data on at least 15 % of the height
+  // (a window around the data's middle, so both sides alike); farther ones
+  // would flatten the data to a line, so the title names them instead.
+  let lo0 = Infinity, hi0 = -Infinity;
+  for (const x of v) if (Number.isFinite(x)) (lo0 = Math.min(lo0, x)), (hi0 = Math.max(hi0, x));
+  if (band) (lo0 = Math.min(lo0, band.lo)), (hi0 = Math.max(hi0, band.hi));
+  const room = Math.max(hi0 - lo0, Math.abs(hi0) * 0.01, 1e-12) / 0.15;
+  const mid = (lo0 + hi0) / 2;
+  const near = (limits || []).filter((l) => allLimits || Math.abs(l.value - mid) <= room / 2);
+  const far = (limits || []).filter((l) => !near.includes(l));
   const yr = (u, min, max) => {
     let a = min, b = max;
     if (band) (a = Math.min(a, band.lo)), (b = Math.max(b, band.hi));
-    for (const l of limits || []) (a = Math.min(a, l.value)), (b = Math.max(b, l.value));
+    for (const l of near) (a = Math.min(a, l.value)), (b = Math.max(b, l.value));
     if (!(b > a)) (a -= 1e-9 + Math.abs(a) * 0.1), (b += 1e-9 + Math.abs(b) * 0.1);
     const pad = (b - a) * 0.08;
     return [a - pad, b + pad];
   };
+  const farText = far.length ? `  (limits off scale: ${far.map((l) => `${l.label.split(' ').slice(-2).join(' ')} ${+l.value.toPrecision(4)}`).join(', ')})` : '';
   const opts = {
-    title: unit ? `${title} [${unit}]` : title,
+    title: (unit ? `${title} [${unit}]` : title) + farText,
     width: width(el),
     height,
     cursor: { sync: sync ? { key: sync } : undefined, drag: { x: true, y: false, setScale: true } },
     scales: { x: { time: true }, y: { range: yr } },
     axes: [{ stroke: '#444', grid: { stroke: '#d6d6d6' } }, { stroke: '#444', grid: { stroke: '#d6d6d6' }, size: 70, space: 18 }],
     series,
-    plugins: [bandPlugin(band, limits)],
+    plugins: [bandPlugin(band, near)],
   };
   const u = new uPlot(opts, data, el);
   if (onPoint) {

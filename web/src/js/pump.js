@@ -105,6 +105,8 @@ async function trendsSection(pumpId, box) {
       }
       const u = trendChart(el, {
         title: s.name, unit: s.unit, ...d, sync: 'trend-' + pumpId,
+        // A fault parameter or the detection ratio is read against its limits.
+        allLimits: /^(fault\.|detection\.ratio$)/.test(s.name),
         onPoint: d.runs ? (i) => d.runs[i] && (location.hash = '#/run/' + encodeURIComponent(d.runs[i])) : null,
       });
       u.hooks.setScale = [(uu, key) => key === 'x' && syncX(uu)];
