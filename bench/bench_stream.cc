@@ -16,6 +16,7 @@
 // 1 and 3 alternate --reps times (the machine is shared: medians, and the
 // ratio of each pair measured back to back).
 // Usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P] [--reps R]
+//                     [--inline-checkpoints] [--durability checkpoint|full] (serve's options)
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -294,8 +295,10 @@ int main(int argc, char** argv) {
     else if (a == "--pumps" && i + 1 < argc) pumps = std::atoi(argv[++i]);
     else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--inline-checkpoints") serve_extra.push_back("--bench-inline-checkpoints");
+    else if (a == "--durability" && i + 1 < argc) serve_extra.insert(serve_extra.end(), {"--durability", argv[++i]});
     else {
-      std::fprintf(stderr, "usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P] [--reps R] [--inline-checkpoints]\n");
+      std::fprintf(stderr, "usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P] [--reps R] [--inline-checkpoints]\n"
+                           "                    [--durability checkpoint|full]\n");
       return 2;
     }
   }

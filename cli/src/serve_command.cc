@@ -15,6 +15,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/core/process_lock.h"
+#include "ambdiag/proto/stream.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/events.h"
 #include "ambdiag/server/ingest.h"
@@ -60,7 +61,8 @@ int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
-                   "--rate-limit-burst", "--alarm-defaults", "--web-dir"},
+                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
+                   "--web-dir"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -76,6 +78,23 @@ int run_serve(const std::vector<std::string>& argv) {
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
   opt.verbose = !args.flag("--quiet");
   opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
+
+  storage::CheckpointOptions ckpt;
+  const std::string durability = args.option("--durability").value_or("checkpoint");
+  if (durability != "checkpoint" && durability != "full")
+    throw UsageError("--durability: must be checkpoint or full");
+  ckpt.sync_commits = durability == "full";
+  const double within_s = args.number("--durable-within").value_or(1.0);
+  if (!(within_s >= 0.01 && within_s <= 60)) throw UsageError("--durable-within: must be seconds in 0.01..60");
+  ckpt.durable_within = std::chrono::milliseconds(static_cast<long>(1000 * within_s));
+  // SQLite's own behaviour for comparison: the writer checkpoints itself
+  // every 1000 pages; the thread keeps only the time trigger.
+  if (args.flag("--bench-inline-checkpoints")) ckpt.inline_pages = ckpt.trigger_pages;
+  if (const auto v = args.option("--speak-protocol")) {
+    opt.speak_protocol_minor = stream::minor_of(*v);
+    if (!opt.speak_protocol_minor || *opt.speak_protocol_minor < 1)
+      throw UsageError("--speak-protocol: must be 1.1 or " + stream::version_string(stream::kProtocolVersion));
+  }
 
   server::AnalysisOptions aopt;
   aopt.db_path = *db;
@@ -97,8 +116,9 @@ int run_serve(const std::vector<std::string>& argv) {
   const ProcessLock lock(*db + ".lock", "historian " + *db, "ambdiag serve",
                          "; one server per historian file (several servers share a PostgreSQL database)");
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
-  // Commits (and so acks) never wait for a checkpoint's fsyncs.
-  if (!args.flag("--bench-inline-checkpoints")) historian.checkpoint_in_background();
+  // Commits (and so acks) never wait for a checkpoint's fsyncs; the
+  // checkpoints also say which commits are durable (docs/storage.md).
+  historian.checkpoint_in_background(ckpt);
   // What ingest, the analysis and REST publish into (GET /metrics, GET
   // /api/v1/events); declared first, so they outlive all three.
   server::MetricsRegistry metrics;
@@ -138,6 +158,9 @@ int run_serve(const std::vector<std::string>& argv) {
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
                                            {"pages_copied", ck.pages_copied},
+                                           {"time_triggered", ck.time_triggered},
+                                           {"commit_generation", ck.commit_generation},
+                                           {"durable_generation", ck.durable_generation},
                                            {"errors", ck.errors},
                                            {"last_error", ck.last_error}}}};
   };
@@ -177,11 +200,14 @@ int run_serve(const std::vector<std::string>& argv) {
   std::fprintf(stderr,
                "ambdiag serve: stopped (%lld blocks, %lld bytes committed; %.3f s from the first block received to "
                "the last commit; queue peak %lld bytes; %lld blocks received, %lld duplicates, %lld before their "
-               "run's header, %lld refused by the full DDS reader)\n",
+               "run's header, %lld refused by the full DDS reader%s)\n",
                static_cast<long long>(c.blocks_stored.load()), static_cast<long long>(c.bytes_stored.load()),
                h.value("streaming_span_s", 0.0), static_cast<long long>(c.queue_peak_bytes.load()),
                static_cast<long long>(c.blocks_received.load()), static_cast<long long>(c.blocks_duplicate.load()),
-               static_cast<long long>(c.blocks_orphan.load()), static_cast<long long>(c.blocks_rejected_by_dds.load()));
+               static_cast<long long>(c.blocks_orphan.load()), static_cast<long long>(c.blocks_rejected_by_dds.load()),
+               opt.speak_protocol_minor.value_or(stream::kDurableAckMinor) >= stream::kDurableAckMinor
+                   ? ("; " + std::to_string(c.blocks_acked_durable.load()) + " blocks acknowledged durable").c_str()
+                   : "");
   return kExitOk;
 }
 
@@ -191,6 +217,7 @@ std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
+           "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
            "\n"
@@ -216,6 +243,10 @@ std::vector<Command> serve_commands() {
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"
+           "--durability checkpoint|full: how blocks become durable before agents may delete them (protocol 1.2):\n"
+           "  checkpoint (default): a checkpoint syncs the log, at the latest --durable-within S seconds (default 1)\n"
+           "  after the commit; full: synchronous=FULL, every commit fsyncs the log (docs/storage.md, Durability).\n"
+           "--speak-protocol 1.1: acknowledge as a 1.1 server did (committed only; for version tests).\n"
            "--tls-cert FILE --tls-key FILE: the REST port speaks HTTPS only (TLS 1.2 or later), PEM files\n"
            "  (deploy/security/ambdiag-pki.sh tls); a missing, unreadable or mismatched file: exit 3.\n"
            "Set CYCLONEDDS_URI to a Cyclone config (deploy/cyclonedds/local.xml on one machine); with DDS\n"

@@ -47,7 +47,8 @@ const char* kUsage =
     "       ambdiag-agent forward [--spool-dir DIR] [--domain D] [options]\n"
     "\n"
     "Streams runs over Cyclone DDS to `ambdiag serve`; exits 0 once every sample is\n"
-    "acknowledged as committed and the server verified the run's count and checksum.\n"
+    "acknowledged durable (on the server's disk for good; protocol 1.2) and the server\n"
+    "verified the run's count and checksum.\n"
     "Runs left in the spool by an earlier agent (killed, restarted) are sent first;\n"
     "`forward` sends only those.\n"
     "\n"
@@ -187,11 +188,12 @@ bool stream_one(stream::AgentEndpoints& ep, RunRecording run, const agent::Agent
   const agent::StreamResult r = agent::stream_run(ep, src, spool, pump, opt);
   std::fprintf(stderr,
                "ambdiag-agent: run %s: %s: %s (%lld blocks, %lld frames, checksum %s %016llx, %lld sent, %lld resends, "
-               "spool peak %llu bytes)\n",
+               "%lld acknowledged durable, spool peak %llu bytes)\n",
                run_id.c_str(), r.complete ? "committed" : "NOT committed", r.message.c_str(),
                static_cast<long long>(r.n_blocks), static_cast<long long>(r.total_frames), to_string(opt.checksum_kind),
                static_cast<unsigned long long>(r.checksum), static_cast<long long>(r.blocks_sent),
-               static_cast<long long>(r.resends), static_cast<unsigned long long>(r.max_spool_disk_bytes));
+               static_cast<long long>(r.resends), static_cast<long long>(r.blocks_durable),
+               static_cast<unsigned long long>(r.max_spool_disk_bytes));
   return r.complete;
 }
 
@@ -238,6 +240,7 @@ int run(const Cli& c) {
   agent::StreamOptions opt;
   opt.paced = !c.flags.count("--fast");
   opt.checksum_kind = *checksum_kind_from(cfg.checksum);  // checked when the config was read
+  if (!cfg.protocol.empty()) opt.protocol_minor = *stream::minor_of(cfg.protocol);  // checked likewise
   if (c.has("--timeout")) opt.timeout = std::chrono::seconds(integer_option(c, "--timeout", 1, 86400));
   opt.stop_requested = [] { return g_stop.load(); };
 

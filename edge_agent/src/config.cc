@@ -135,7 +135,7 @@ AgentConfig load_agent_config(const std::string& path) {
   }
   if (doc.contains("dds")) {
     const json& d = doc["dds"];
-    r.only(d, "dds", {"domain", "partition", "partition_per_pump", "checksum"});
+    r.only(d, "dds", {"domain", "partition", "partition_per_pump", "checksum", "protocol"});
     if (d.contains("domain")) {
       const int64_t v = r.integer(d["domain"], "dds.domain");
       if (v < 0 || v > 232) r.fail("dds.domain", "must be in 0..232");
@@ -149,6 +149,12 @@ AgentConfig load_agent_config(const std::string& path) {
     if (d.contains("checksum")) {
       c.checksum = r.str(d["checksum"], "dds.checksum");
       if (!checksum_kind_from(c.checksum)) r.fail("dds.checksum", "must be \"xxh64\" or \"fnv1a64\"");
+    }
+    if (d.contains("protocol")) {
+      c.protocol = r.str(d["protocol"], "dds.protocol");
+      const auto minor = stream::minor_of(c.protocol);
+      if (!minor || *minor < 1)
+        r.fail("dds.protocol", "must be \"1.1\" or \"" + stream::version_string(stream::kProtocolVersion) + "\"");
     }
   }
   if (doc.contains("spool")) {

@@ -48,6 +48,8 @@ class RunStream {
     for (int64_t s : held)
       if (s < produced_) acked_[static_cast<size_t>(s)] = 0;
     for (char a : acked_) acked_count_ += a;
+    durable_ = acked_;  // blocks no longer in the spool were acknowledged durable
+    durable_count_ = acked_count_;
     while (first_unacked_ < produced_ && acked_[static_cast<size_t>(first_unacked_)]) ++first_unacked_;
     send_cursor_ = first_unacked_;
     source_done_ = true;
@@ -67,7 +69,7 @@ class RunStream {
 
   StreamResult run() {
     start_ = Clock::now();
-    last_progress_ = start_;
+    last_progress_ = last_durable_progress_ = start_;
     send_header();
     while (!final_) {
       const auto now = Clock::now();
@@ -93,6 +95,7 @@ class RunStream {
     if (final_) spool_.remove();
     result_.server_verdict = final_;
     result_.n_blocks = produced_;
+    result_.blocks_durable = durable_count_;
     result_.total_frames = total_frames_;
     result_.checksum = checksum_;
     heartbeat(Clock::now(), ambdiag_stream_AGENT_DONE);
@@ -102,7 +105,7 @@ class RunStream {
  private:
   void send_header() {
     ambdiag_stream_RunHeader h{};
-    h.protocol_version = stream::kProtocolVersion;
+    h.protocol_version = version_;
     h.run_id = const_cast<char*>(hdr_.run_id.c_str());
     h.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
     h.header_json = const_cast<char*>(hdr_.header_json.c_str());
@@ -136,7 +139,7 @@ class RunStream {
   void heartbeat(Clock::time_point now, std::optional<ambdiag_stream_AgentState> forced = std::nullopt) {
     last_heartbeat_ = now;
     ambdiag_stream_AgentStatus s{};
-    s.protocol_version = stream::kProtocolVersion;
+    s.protocol_version = version_;
     s.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
     s.run_id = const_cast<char*>(hdr_.run_id.c_str());
     s.spool_bytes = spool_.folder_disk_bytes();
@@ -163,10 +166,17 @@ class RunStream {
         return;
       }
       if (a.state == ambdiag_stream_ACK_STORED) {
+        // A 1.2 server's ack without `durable` is only committed: it moves
+        // the window; the block stays in the spool until its durable ack.
+        // A 1.1 server's acks (or this agent speaking 1.1) delete at once.
+        const bool deletes = a.durable || !durable_acks(a.protocol_version);
         for (int64_t s = std::max<int64_t>(a.first_seq, 0); s <= a.last_seq && s < produced_; ++s) {
-          if (acked_[static_cast<size_t>(s)]) continue;
-          acked_[static_cast<size_t>(s)] = 1;
-          ++acked_count_;
+          const auto i = static_cast<size_t>(s);
+          if (!acked_[i]) acked_[i] = 1, ++acked_count_;
+          if (!deletes || durable_[i]) continue;
+          durable_[i] = 1;
+          ++durable_count_;
+          last_durable_progress_ = Clock::now();
           spool_.erase(s);
         }
         const int64_t before = first_unacked_;
@@ -215,6 +225,7 @@ class RunStream {
       spool_full_ = false;
       checksum_ = sums.run_after;
       acked_.push_back(0);
+      durable_.push_back(0);
       ++produced_;
       pending_.reset();
       last_progress_ = now;
@@ -230,7 +241,16 @@ class RunStream {
                    m > matched_ ? "server appeared" : "server gone, spooling", m, m == 1 ? "" : "s");
     matched_ = m;
     const bool stalled = send_cursor_ > first_unacked_ && now - last_ack_progress_ > opt_.retransmit_after;
-    if ((new_server || stalled) && matched_ > 0) {
+    // Committed but never made durable: the server that committed them may
+    // have lost them (a power cut, then a restart). A new server, or no
+    // durable ack for a long while, and they are sent again.
+    const bool undurable = acked_count_ > durable_count_;
+    const bool durable_stalled = undurable && now - last_durable_progress_ > 4 * opt_.retransmit_after;
+    if ((new_server || durable_stalled) && undurable && matched_ > 0) {
+      forget_undurable();
+      last_durable_progress_ = now;
+    }
+    if ((new_server || stalled || durable_stalled) && matched_ > 0) {
       // Re-send everything not acknowledged (stored idempotently by the server).
       if (send_cursor_ > first_unacked_ || end_sent_) ++result_.resends;
       send_cursor_ = first_unacked_;
@@ -253,7 +273,7 @@ class RunStream {
       if (!held) held = &from_disk.emplace(spool_.get(send_cursor_));
       const Block& b = *held;
       ambdiag_stream_SampleBlock s{};
-      s.protocol_version = stream::kProtocolVersion;
+      s.protocol_version = version_;
       s.run_id = const_cast<char*>(hdr_.run_id.c_str());
       s.seq = b.seq;
       s.first_frame = b.first_frame;
@@ -268,10 +288,27 @@ class RunStream {
     }
   }
 
+  // Blocks acknowledged as committed but not as durable count as not
+  // acknowledged again; the run end waits until they are committed again.
+  void forget_undurable() {
+    for (int64_t s = 0; s < produced_; ++s) {
+      const auto i = static_cast<size_t>(s);
+      if (acked_[i] && !durable_[i]) acked_[i] = 0, --acked_count_;
+    }
+    first_unacked_ = 0;
+    while (first_unacked_ < produced_ && acked_[static_cast<size_t>(first_unacked_)]) ++first_unacked_;
+    if (first_unacked_ < produced_) end_sent_ = false;
+  }
+
+  // Does the sender of this ack (and this agent) speak durable acks (1.2)?
+  bool durable_acks(uint32_t ack_version) const {
+    return std::min(stream::protocol_minor(ack_version), opt_.protocol_minor) >= stream::kDurableAckMinor;
+  }
+
   void send_end() { send_end(end_aborted_, end_reason_); }
   void send_end(bool aborted, const std::string& reason) {
     ambdiag_stream_RunEnd e{};
-    e.protocol_version = stream::kProtocolVersion;
+    e.protocol_version = version_;
     e.run_id = const_cast<char*>(hdr_.run_id.c_str());
     e.pump_id = const_cast<char*>(hdr_.pump_id.c_str());
     e.total_frames = src_ ? src_->frames_produced() : total_frames_;
@@ -329,12 +366,14 @@ class RunStream {
   std::string end_reason_;
   int64_t total_frames_ = 0;
 
-  Clock::time_point start_, last_progress_, last_ack_progress_, last_heartbeat_, end_sent_at_;
+  Clock::time_point start_, last_progress_, last_ack_progress_, last_durable_progress_, last_heartbeat_, end_sent_at_;
+  const uint32_t version_ = stream::protocol_version(opt_.protocol_minor);
   std::optional<Block> pending_;
   bool source_done_ = false, spool_full_ = false, end_sent_ = false, final_ = false, warned_version_ = false;
   int32_t matched_ = 0;
-  int64_t produced_ = 0, first_unacked_ = 0, send_cursor_ = 0, acked_count_ = 0;
-  std::vector<char> acked_;
+  int64_t produced_ = 0, first_unacked_ = 0, send_cursor_ = 0, acked_count_ = 0, durable_count_ = 0;
+  std::vector<char> acked_;    // committed (flow control)
+  std::vector<char> durable_;  // acknowledged durable: gone from the spool
   uint64_t checksum_ = kFnv1a64Init;
   StreamResult result_;
 };

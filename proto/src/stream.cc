@@ -10,6 +10,12 @@ std::string version_string(uint32_t v) {
   return std::to_string(protocol_major(v)) + "." + std::to_string(protocol_minor(v));
 }
 
+std::optional<uint32_t> minor_of(const std::string& version) {
+  for (uint32_t m = 0; m <= ambdiag_stream_kProtocolMinor; ++m)
+    if (version == version_string(protocol_version(m))) return m;
+  return std::nullopt;
+}
+
 namespace {
 std::string data_topic(const char* name) {
   return "ambdiag_v" + std::to_string(ambdiag_stream_kProtocolMajor) + "_" + name;

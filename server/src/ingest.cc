@@ -58,6 +58,7 @@ nlohmann::json IngestCounters::to_json() const {
                       {"blocks_orphan", blocks_orphan.load()},
                       {"blocks_rejected_by_dds", blocks_rejected_by_dds.load()},
                       {"acks_sent", acks_sent.load()},
+                      {"blocks_acked_durable", blocks_acked_durable.load()},
                       {"heartbeats", heartbeats.load()}};
   std::lock_guard lock(mu_);
   nlohmann::json r = nlohmann::json::object();
@@ -286,7 +287,7 @@ struct Ingest::Impl {
     }
     run->last_seen = Clock::now();
     detail::ValidBlock v{b.seq,   b.first_frame, b.n_frames, std::vector<uint8_t>(b.payload._buffer, b.payload._buffer + n_bytes),
-                         extends, run_before,    sums.run_after, *kind};
+                         extends, run_before,    sums.run_after, *kind, stream::protocol_minor(b.protocol_version)};
     if (extends) run->chain_seq = b.seq + 1, run->chain_hash = sums.run_after, run->chain_kind = *kind;
     return v;
   }
@@ -418,15 +419,20 @@ void Ingest::run(const std::atomic<bool>& stop_flag) {
     pthread_setname_np(pthread_self(), "ambdiag-commit");  // told apart in top -H, perf, /proc
     impl_->commit_loop(receiving_done);
   });
-  struct Join {  // the commit thread finishes the queue even if receiving throws
-    std::atomic<bool>& done;
-    std::thread& t;
-    ~Join() {
-      done = true;
-      t.join();
-    }
-  } join{receiving_done, committer};
-  while (!stop_flag.load()) impl_->receive_step();
+  {
+    struct Join {  // the commit thread finishes the queue even if receiving throws
+      std::atomic<bool>& done;
+      std::thread& t;
+      ~Join() {
+        done = true;
+        t.join();
+      }
+    } join{receiving_done, committer};
+    while (!stop_flag.load()) impl_->receive_step();
+  }
+  // The last commits' durable acks, once a checkpoint (time-triggered
+  // within about a second) has synced them.
+  impl_->committer.drain(std::chrono::seconds(3));
 }
 
 }  // namespace ambdiag::server

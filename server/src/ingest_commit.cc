@@ -31,25 +31,48 @@ void Committer::reject(const std::string& reason, const std::string& run_id, con
   log_line(opt_.verbose, "rejected (" + reason + ") run '" + run_id + "': " + what);
 }
 
+Committer::Committer(storage::Historian& historian, const IngestOptions& opt, IngestCounters& counters,
+                     const dds::Writer<ambdiag_stream_Ack>& ack_writer)
+    : h_(historian), opt_(opt), counters_(counters), ack_writer_(ack_writer), durable_acks_([this](const Ack& a) {
+        send(a);
+      }) {
+  if (!durable_acks()) return;
+  h_.on_durable([this](uint64_t g) { durable_acks_.durable(g); });
+  durable_acks_.durable(h_.durable_generation());  // what was durable before it listened
+}
+
+Committer::~Committer() {
+  if (durable_acks()) h_.on_durable(nullptr);  // before the acks' thread goes
+}
+
+bool Committer::durable_acks() const {
+  return opt_.speak_protocol_minor.value_or(ambdiag_stream_kProtocolMinor) >= stream::kDurableAckMinor;
+}
+
 void Committer::send(const Ack& a) {
   ambdiag_stream_Ack m{};
-  m.protocol_version = stream::kProtocolVersion;
+  m.protocol_version = stream::protocol_version(opt_.speak_protocol_minor.value_or(ambdiag_stream_kProtocolMinor));
   m.run_id = const_cast<char*>(a.run_id.c_str());
   m.first_seq = a.first;
   m.last_seq = a.last;
   m.state = a.state;
   m.message = const_cast<char*>(a.message.c_str());
-  if (ack_writer_.write(m)) ++counters_.acks_sent;
+  m.durable = a.durable;
+  if (!ack_writer_.write(m)) return;
+  ++counters_.acks_sent;
+  if (a.durable && a.state == ambdiag_stream_ACK_STORED) counters_.blocks_acked_durable += a.last - a.first + 1;
 }
 
-void Committer::ack_ranges(const std::string& run_id, std::vector<int64_t> seqs) {
+std::vector<Committer::Ack> Committer::ack_ranges(const std::string& run_id, std::vector<int64_t> seqs) {
+  std::vector<Ack> out;
   std::sort(seqs.begin(), seqs.end());
   for (size_t i = 0; i < seqs.size();) {
     size_t j = i;
     while (j + 1 < seqs.size() && seqs[j + 1] <= seqs[j] + 1) ++j;
-    send({run_id, seqs[i], seqs[j], ambdiag_stream_ACK_STORED, ""});
+    out.push_back({run_id, seqs[i], seqs[j], ambdiag_stream_ACK_STORED, ""});
     i = j + 1;
   }
+  return out;
 }
 
 Committer::Chain& Committer::chain(Staged& st, const std::string& run_id) {
@@ -102,6 +125,8 @@ void Committer::apply(Blocks& w, Staged& st) {
   }
   Chain& c = chain(st, w.run_id);
   auto& seqs = st.stored_seqs[w.run_id];
+  auto& minor = st.agent_minor.try_emplace(w.run_id, UINT32_MAX).first->second;
+  for (const auto& b : w.blocks) minor = std::min(minor, b.protocol_minor);
   for (size_t i = 0; i < w.blocks.size(); ++i) {
     if (!ok[i]) continue;
     const auto& b = w.blocks[i];
@@ -220,8 +245,31 @@ void Committer::commit(std::vector<Work>& batch) {
   counters_.monitoring_duplicate += st.monitoring_duplicate;
   counters_.runs_verified_from_digest += st.from_digest;
   if (st.stream_progress) counters_.last_commit_ns = steady_ns();
-  for (auto& [run_id, seqs] : st.stored_seqs) ack_ranges(run_id, std::move(seqs));
-  for (const auto& v : st.verdicts) send(v);
+  if (!durable_acks()) {  // speaking 1.1: committed is all it says
+    for (auto& [run_id, seqs] : st.stored_seqs)
+      for (const auto& a : ack_ranges(run_id, std::move(seqs))) send(a);
+    for (const auto& v : st.verdicts) send(v);
+  } else {
+    // A 1.2 agent may move its window on what is committed, and delete from
+    // its spool what is durable; a 1.1 agent deletes on any ack, so it gets
+    // only the durable one. Verdicts end a run at the agent: durable only.
+    const uint64_t generation = h_.commit_generation();
+    const bool durable_now = h_.durable_generation() >= generation;  // synchronous = FULL
+    std::vector<Ack> later;
+    for (auto& [run_id, seqs] : st.stored_seqs) {
+      const bool new_agent = st.agent_minor[run_id] >= stream::kDurableAckMinor;
+      for (auto& a : ack_ranges(run_id, std::move(seqs))) {
+        if (new_agent && !durable_now) send(a);
+        a.durable = true;
+        later.push_back(std::move(a));
+      }
+    }
+    for (auto v : st.verdicts) {
+      v.durable = true;
+      later.push_back(std::move(v));
+    }
+    durable_acks_.hold(generation, std::move(later));
+  }
   for (const auto& l : st.log) log_line(opt_.verbose, l);
   // After the commit: whoever analyses the run reads it complete.
   if (opt_.on_run_complete)

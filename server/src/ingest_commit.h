@@ -12,6 +12,7 @@
 
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/ingest.h"
+#include "ingest_durable.h"
 #include "ingest_work.h"
 
 namespace ambdiag::server::detail {
@@ -22,15 +23,23 @@ void log_line(bool verbose, const std::string& msg);
 
 class Committer {
  public:
+  // Registers itself as `historian`'s durability listener (protocol 1.2:
+  // the historian must checkpoint in the background) until destroyed.
   Committer(storage::Historian& historian, const IngestOptions& opt, IngestCounters& counters,
-            const dds::Writer<ambdiag_stream_Ack>& ack_writer)
-      : h_(historian), opt_(opt), counters_(counters), ack_writer_(ack_writer) {}
+            const dds::Writer<ambdiag_stream_Ack>& ack_writer);
+  ~Committer();
+  Committer(const Committer&) = delete;
+  Committer& operator=(const Committer&) = delete;
 
   // All of `batch` in one transaction. A refused item (conflicting chunk,
   // bad header, ...) is rejected and counted and the rest goes on; a
   // StorageError rolls everything back: counted, logged, nothing
-  // acknowledged.
+  // acknowledged. After the commit: acks of what is committed to 1.2
+  // agents at once (flow control); acks that say durable, and every
+  // verdict, once the commit is durable.
   void commit(std::vector<Work>& batch);
+  // A clean stop: waits (at most `timeout`) for the held acks to go out.
+  void drain(std::chrono::milliseconds timeout) { durable_acks_.drain(timeout); }
 
  private:
   // The run's checksum (of `kind`) over chunks 0..next_seq-1 as this server
@@ -40,17 +49,13 @@ class Committer {
     uint64_t hash = kFnv1a64Init;
     ChecksumKind kind = ChecksumKind::fnv1a64;
   };
-  struct Ack {
-    std::string run_id;
-    int64_t first, last;
-    ambdiag_stream_AckState state;
-    std::string message;
-  };
+  using Ack = AckMsg;
   // What a batch did, applied after its commit.
   struct Staged {
     std::unordered_map<std::string, Chain> chains;  // runs touched: their chains after the batch
     std::unordered_map<std::string, bool> ended;    // runs with a verdict in this batch
     std::unordered_map<std::string, std::vector<int64_t>> stored_seqs;
+    std::unordered_map<std::string, uint32_t> agent_minor;  // the oldest sender of each run's blocks
     std::vector<Ack> verdicts;
     std::vector<std::string> log;
     std::vector<std::string> completed;  // runs that became complete in this batch
@@ -70,13 +75,16 @@ class Committer {
                storage::RunStatus after, const std::string& reason);
   void reject(const std::string& reason, const std::string& run_id, const std::string& what);
   void send(const Ack& a);
-  void ack_ranges(const std::string& run_id, std::vector<int64_t> seqs);
+  // The stored blocks as acks of seq ranges.
+  static std::vector<Ack> ack_ranges(const std::string& run_id, std::vector<int64_t> seqs);
+  bool durable_acks() const;  // this server speaks 1.2 or later
 
   storage::Historian& h_;
   const IngestOptions& opt_;
   IngestCounters& counters_;
   const dds::Writer<ambdiag_stream_Ack>& ack_writer_;
   std::unordered_map<std::string, Chain> chains_;
+  DurableAcks durable_acks_;  // last: its thread stops before the rest goes
 };
 
 }  // namespace ambdiag::server::detail

@@ -23,6 +23,7 @@ struct ValidBlock {
   bool chained = false;
   uint64_t run_hash_before = 0, run_hash_after = 0;
   ChecksumKind kind = ChecksumKind::fnv1a64;
+  uint32_t protocol_minor = 0;  // the sender's: 1.2 agents get committed and durable acks
 };
 
 struct BeginRun {

@@ -424,11 +424,36 @@ void Historian::WriteBatch::commit() {
 Historian::WriteBatch Historian::write_batch() { return WriteBatch(this); }
 
 void Historian::checkpoint_in_background(int trigger_pages) {
+  checkpoint_in_background(CheckpointOptions{.trigger_pages = trigger_pages, .inline_pages = 16 * trigger_pages});
+}
+
+void Historian::checkpoint_in_background(const CheckpointOptions& opt) {
   impl_->require_writer("checkpoint_in_background");
   if (impl_->checkpointer) throw std::logic_error("Historian::checkpoint_in_background called twice");
-  if (trigger_pages < 1) throw std::invalid_argument("Historian::checkpoint_in_background: trigger_pages must be >= 1");
-  impl_->checkpointer = std::make_unique<detail::BackgroundCheckpoint>(impl_->db.get(), impl_->db.path(),
-                                                                       trigger_pages, 16 * trigger_pages);
+  if (opt.trigger_pages < 1 || opt.inline_pages < opt.trigger_pages)
+    throw std::invalid_argument("Historian::checkpoint_in_background: need 1 <= trigger_pages <= inline_pages");
+  if (opt.durable_within.count() <= 0)
+    throw std::invalid_argument("Historian::checkpoint_in_background: durable_within must be > 0");
+  impl_->checkpointer = std::make_unique<detail::BackgroundCheckpoint>(impl_->db.get(), impl_->db.path(), opt);
+}
+
+namespace {
+detail::BackgroundCheckpoint& tracker(const std::unique_ptr<detail::BackgroundCheckpoint>& c, const char* what) {
+  if (!c) throw std::logic_error(std::string("Historian::") + what + " needs checkpoint_in_background");
+  return *c;
+}
+}  // namespace
+
+std::uint64_t Historian::commit_generation() const {
+  return tracker(impl_->checkpointer, "commit_generation").commit_generation();
+}
+
+std::uint64_t Historian::durable_generation() const {
+  return tracker(impl_->checkpointer, "durable_generation").durable_generation();
+}
+
+void Historian::on_durable(std::function<void(std::uint64_t)> listener) {
+  tracker(impl_->checkpointer, "on_durable").on_durable(std::move(listener));
 }
 
 CheckpointStats Historian::checkpoint_stats() const {

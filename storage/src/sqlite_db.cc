@@ -2,6 +2,9 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
+#include "ambdiag/storage/power_cut.h"
+
+#include <mutex>
 
 namespace ambdiag::storage::detail {
 
@@ -26,6 +29,10 @@ void check(sqlite3* db, int rc, const std::string& path, const char* what) {
 }
 
 Db Db::open(const std::string& path, int flags) {
+  // Tests may ask for the simulated power cut (power_cut.h) through the
+  // environment; read once, before the process' first connection.
+  static std::once_flag power_cut_env;
+  std::call_once(power_cut_env, [] { power_cut::install_from_env(); });
   sqlite3* db = nullptr;
   const int rc = sqlite3_open_v2(path.c_str(), &db, flags | SQLITE_OPEN_NOMUTEX, nullptr);
   Db owner(db, path);  // sqlite3_open_v2 hands out a handle even on failure

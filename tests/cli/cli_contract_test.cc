@@ -2,6 +2,7 @@
 // exit codes, JSON on stdout, messages on stderr.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -52,6 +53,20 @@ TEST(Cli, UsageErrorsExitTwo) {
   EXPECT_EQ(run("model modes " + data("reference_pump/plant.json") + " --speed fast").code, 2);
   EXPECT_EQ(run("model modes " + data("reference_pump/plant.json") + " --bogus").code, 2);
   EXPECT_EQ(run("model frf " + data("reference_pump/plant.json")).code, 2);  // no -o
+}
+
+// serve's durability options (docs/streaming.md, "Durable acknowledgement"):
+// a bad value is a usage error naming the option, before any file is touched.
+TEST(Cli, ServeRefusesBadDurabilityOptionsNamingThem) {
+  const std::string db = (testing::scratch_dir() / "never.db").string();
+  for (const auto& [args, option] :
+       {std::pair{"--durability sometimes", "--durability"}, std::pair{"--durable-within 0", "--durable-within"},
+        std::pair{"--speak-protocol 2.0", "--speak-protocol"}, std::pair{"--speak-protocol 1.0", "--speak-protocol"}}) {
+    const Result r = run("serve --db " + db + " --http-port 0 " + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_NE(r.err.find(option), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(db));
 }
 
 TEST(Cli, HelpExistsForEveryCommand) {

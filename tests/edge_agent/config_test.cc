@@ -33,6 +33,10 @@ TEST(AgentConfig, ReadsEveryKey) {
   EXPECT_EQ(c.spool_limit_bytes, 2097152u);
   EXPECT_EQ(c.memory_blocks, 8u);
   EXPECT_EQ(c.block_frames, 256u);
+  EXPECT_EQ(c.protocol, "");  // this build's
+  EXPECT_EQ(load_agent_config(ambdiag::testing::write_scratch("old.json", R"({"dds": {"protocol": "1.1"}})").string())
+                .protocol,
+            "1.1");
 }
 
 TEST(AgentConfig, ReadsScheduleAndSimulation) {
@@ -83,6 +87,10 @@ TEST(AgentConfig, ErrorsNameTheKey) {
   EXPECT_NE(error_of(R"({"dds": {"domain": 300}})").find("dds.domain"), std::string::npos);
   EXPECT_NE(error_of(R"({"dds": {"partiton": "x"}})").find("dds.partiton: unknown key"), std::string::npos);
   EXPECT_NE(error_of(R"({"dds": {"partition": "site*"}})").find("dds.partition"), std::string::npos);
+  // Protocol 1.1 or this build's; another major, a minor not yet known, 1.0 (no acks it could mean): refused.
+  for (const char* bad : {"2.0", "1.9", "1.0", "one"})
+    EXPECT_NE(error_of(std::string(R"({"dds": {"protocol": ")") + bad + R"("}})").find("dds.protocol"), std::string::npos)
+        << bad;
   EXPECT_NE(error_of(R"({"spool": {"limit_bytes": 10}})").find("spool.limit_bytes"), std::string::npos);
   EXPECT_NE(error_of(R"({"source": "tape"})").find("source"), std::string::npos);
   EXPECT_NE(error_of(R"({"block_frames": 0})").find("block_frames"), std::string::npos);

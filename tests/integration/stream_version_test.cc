@@ -106,5 +106,46 @@ TEST_F(StreamTest, AgentsOfEitherChecksumKindAreVerifiedSampleForSample) {
   EXPECT_EQ(server->wait(15s), 0) << server->log();
 }
 
+// Protocol 1.2 (durable acks) against 1.1 both ways. An agent speaking 1.1
+// deletes a block on any ack: the 1.2 server acknowledges its blocks only
+// once durable, so it keeps the new guarantee, and completes.
+TEST_F(StreamTest, AnAgentSpeaking11IsAcknowledgedOnlyWhenDurableAndCompletes) {
+  auto server = start_server();
+  const fs::path old_cfg = write_scratch("v11.json", R"({"dds": {"protocol": "1.1"}})");
+  const fs::path run = short_run(0.5, "V/agent-1.1");
+  auto agent = start_agent(run, {"--fast", "--timeout", "30", "--config", old_cfg.string()});
+  EXPECT_EQ(agent->wait(60s), 0) << agent->log() << "\n--- server ---\n" << server->log();
+  const auto info = find_run("V/agent-1.1");
+  ASSERT_TRUE(info);
+  EXPECT_EQ(info->status, storage::RunStatus::complete) << info->status_reason;
+  EXPECT_TRUE(stored_samples("V/agent-1.1") == read_file_bytes((run / "samples.f32").string()));
+  server->signal(SIGTERM);
+  EXPECT_EQ(server->wait(15s), 0) << server->log();
+  // Every block of the run was acknowledged as durable (the server's last line counts them).
+  const std::string log = server->log();
+  const auto at = log.find(" blocks acknowledged durable");
+  ASSERT_NE(at, std::string::npos) << log;
+  const auto from = log.rfind(' ', at - 1) + 1;
+  EXPECT_GE(std::stoll(log.substr(from, at - from)), info->received_chunks) << log;
+}
+
+// A 1.2 agent and a server speaking 1.1 (committed acks, no durable field):
+// the agent takes those acks as what that server can say and completes.
+TEST_F(StreamTest, ANewAgentCompletesWithAServerSpeaking11) {
+  auto server = start_server({"--speak-protocol", "1.1"});
+  const fs::path run = short_run(0.5, "V/server-1.1");
+  auto agent = start_agent(run, {"--fast", "--timeout", "30"});
+  EXPECT_EQ(agent->wait(60s), 0) << agent->log() << "\n--- server ---\n" << server->log();
+  const auto info = find_run("V/server-1.1");
+  ASSERT_TRUE(info);
+  EXPECT_EQ(info->status, storage::RunStatus::complete) << info->status_reason;
+  EXPECT_TRUE(stored_samples("V/server-1.1") == read_file_bytes((run / "samples.f32").string()));
+  // The agent's spool holds no run: every block was acknowledged (as stored, by a 1.1 server).
+  for (const auto& e : fs::directory_iterator(dir / "spool")) EXPECT_FALSE(e.is_directory()) << e.path();
+  EXPECT_EQ(server->log().find("acknowledged durable"), std::string::npos);
+  server->signal(SIGTERM);
+  EXPECT_EQ(server->wait(15s), 0) << server->log();
+}
+
 }  // namespace
 }  // namespace ambdiag::testing

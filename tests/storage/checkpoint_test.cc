@@ -3,6 +3,7 @@
 // stays bounded, and nothing committed is lost or changed.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <thread>
@@ -65,6 +66,47 @@ TEST(Checkpoint, IsRefusedOnAReader) {
   { auto h = Historian::open(path); }
   auto r = Historian::open(path, Historian::Mode::read);
   EXPECT_THROW(r.checkpoint_in_background(), std::logic_error);
+}
+
+// The time trigger: a commit far below the size trigger is durable within
+// about durable_within, and the listener hears of it.
+TEST(Checkpoint, ACommitBelowTheSizeTriggerIsDurableWithinTheTimeTrigger) {
+  const auto path = (ambdiag::testing::scratch_dir() / "ck3.db").string();
+  auto h = Historian::open(path);
+  CheckpointOptions opt;
+  opt.durable_within = std::chrono::milliseconds(100);
+  h.checkpoint_in_background(opt);
+  std::atomic<uint64_t> heard{0};
+  h.on_durable([&](uint64_t g) { heard = g; });
+  h.begin_run(run_header_from_json(run_json_text("P-7/time", kChannels)));
+  const auto bytes = samples_bytes(kFrames, kChannels, 9);
+  const auto t0 = std::chrono::steady_clock::now();
+  h.put_chunks("P-7/time", cut_chunks(bytes, kChannels, kFrames));  // 5 pages: the size trigger never fires
+  const uint64_t gen = h.commit_generation();
+  EXPECT_GE(gen, 3u);  // the state at open, the header, the chunk
+  EXPECT_LT(h.durable_generation(), gen);
+  while (h.durable_generation() < gen && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GE(h.durable_generation(), gen);
+  EXPECT_GT(waited_s, 0.05);  // not before its time: no checkpoint per commit
+  EXPECT_LT(waited_s, 1.0);
+  EXPECT_EQ(heard.load(), h.durable_generation());
+  EXPECT_GE(h.checkpoint_stats().time_triggered, 1);
+  h.on_durable(nullptr);
+}
+
+// synchronous = FULL: durable when the commit returns.
+TEST(Checkpoint, WithSyncCommitsACommitIsDurableWhenItReturns) {
+  const auto path = (ambdiag::testing::scratch_dir() / "ck4.db").string();
+  auto h = Historian::open(path);
+  CheckpointOptions opt;
+  opt.sync_commits = true;
+  opt.durable_within = std::chrono::seconds(60);  // the time trigger plays no part
+  h.checkpoint_in_background(opt);
+  h.begin_run(run_header_from_json(run_json_text("P-7/full", kChannels)));
+  EXPECT_EQ(h.durable_generation(), h.commit_generation());
+  EXPECT_THROW(Historian::open(path, Historian::Mode::read).commit_generation(), std::logic_error);
 }
 
 }  // namespace

@@ -5,7 +5,8 @@
 //                   "period_samples": 2048, "f_min_hz": 1, "f_max_hz": 1000, "settle_periods": 2,
 //                   "meas_periods": 4, "monitoring_s": 1, "seed": 1, "speed_spread_pct": 2,
 //                   "seal_drift_pct": 5, "seal_drift_link_pct": 1},
-//    "dds": {"domain": 0, "partition": "site-a", "partition_per_pump": false, "checksum": "xxh64"},
+//    "dds": {"domain": 0, "partition": "site-a", "partition_per_pump": false, "checksum": "xxh64",
+//            "protocol": "1.2"},
 //    "spool": {"dir": "/var/spool/ambdiag", "limit_bytes": 1073741824, "memory_blocks": 256},
 //    "block_frames": 512}
 // Every key is optional; unknown keys are refused (a typo must not silently
@@ -56,6 +57,10 @@ struct AgentConfig {
   // Checksums of new runs: "xxh64" (protocol 1.1) or "fnv1a64" for a server
   // of protocol 1.0, which knows no other (docs/streaming.md).
   std::string checksum = "xxh64";
+  // The protocol minor this agent speaks: "1.2" (durable acks: blocks leave
+  // the spool once on the server's disk for good) or "1.1" (as agents before
+  // it did; for the version tests). Empty: this build's.
+  std::string protocol;
   std::string spool_dir = "ambdiag-spool";
   uint64_t spool_limit_bytes = 1ull << 30;  // segments on disk in the whole spool folder, all runs
   uint32_t memory_blocks = 256;        // unacknowledged blocks kept in memory before the disk

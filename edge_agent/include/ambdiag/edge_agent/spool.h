@@ -7,7 +7,8 @@
 // source has produced everything, end.json (count and checksum, atomic like
 // the header). Every block goes to disk; up to `memory_blocks` unacknowledged
 // blocks are also kept in memory so sending does not read them back. A block
-// leaves the spool when the server acknowledges it as committed; a segment
+// leaves the spool when the server acknowledges it as durable (protocol 1.2;
+// a 1.1 server: as committed); a segment
 // whose blocks are all acknowledged is deleted, and the folder when the
 // server gave its verdict on the whole run (remove()). put() refuses a block
 // when the segments on disk, of this run and of the runs left in the same

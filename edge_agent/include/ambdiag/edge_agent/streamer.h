@@ -2,9 +2,11 @@
 //
 // Protocol (docs/streaming.md): header (transient-local), blocks with at
 // most `window_blocks` unacknowledged in flight, the server acknowledges
-// committed ranges; once every block is acknowledged the agent sends the run
-// end (count and checksum) and waits for the server's verdict (complete or
-// incomplete). Blocks stay in the Spool until acknowledged; when no server
+// committed ranges, then (1.2) durable ones; once every block is
+// acknowledged the agent sends the run end (count and checksum) and waits
+// for the server's verdict (complete or incomplete). Blocks stay in the
+// Spool until acknowledged durable; a server that appears (a restart, which
+// may follow a power cut) gets every block not yet durable again. When no server
 // is matched the source keeps producing into the spool (disk once memory is
 // used up) and the backlog is re-sent from the first unacknowledged block
 // when a server appears or acks stall. The server stores (run_id, seq)
@@ -30,6 +32,10 @@ struct StreamOptions {
   // FNV-1a 64 (what a 1.0 server verifies). Runs recovered from the spool
   // keep the kind they were spooled with.
   ChecksumKind checksum_kind = ChecksumKind::xxh64;
+  // The protocol minor spoken (1.2: durable acks). With a 1.2 server a block
+  // leaves the spool when acknowledged durable; acks of what is committed
+  // only move the window. Speaking 1.1, or to a 1.1 server, any ack deletes.
+  uint32_t protocol_minor = ambdiag_stream_kProtocolMinor;
   std::chrono::milliseconds retransmit_after{2000};  // no ack progress -> resend backlog
   std::chrono::milliseconds heartbeat{250};
   std::chrono::milliseconds timeout{60000};          // no progress at all -> give up
@@ -45,6 +51,7 @@ struct StreamResult {
   uint64_t checksum = 0;
   int64_t blocks_sent = 0;  // including re-sent ones
   int64_t resends = 0;      // times the backlog was re-sent
+  int64_t blocks_durable = 0;  // blocks the server acknowledged as durable (1.2), or as stored (1.1)
   uint64_t max_spool_disk_bytes = 0;
 };
 

@@ -18,6 +18,12 @@ inline constexpr uint32_t protocol_major(uint32_t v) { return v >> 16; }
 inline constexpr uint32_t protocol_minor(uint32_t v) { return v & 0xffffu; }
 inline constexpr bool compatible(uint32_t v) { return protocol_major(v) == ambdiag_stream_kProtocolMajor; }
 std::string version_string(uint32_t v);  // "1.0"
+// 1.2: the server acknowledges blocks and verdicts as durable (Ack::durable).
+inline constexpr uint32_t kDurableAckMinor = 2;
+inline constexpr uint32_t protocol_version(uint32_t minor) { return (ambdiag_stream_kProtocolMajor << 16) | minor; }
+// "1.1" -> its minor, for processes told to speak an older minor (the
+// version tests); nothing for another major or a minor this build does not know.
+std::optional<uint32_t> minor_of(const std::string& version);
 
 // Readers refuse blocks larger than this (a 15-channel block of 512 frames
 // is 30 KiB; 4 MiB leaves room for 8 kHz x 64 channels x 2 s).

@@ -26,6 +26,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,10 @@ struct IngestOptions {
   // Called from the commit thread after the commit that made a run
   // complete (the analysis queues it); must be quick and must not throw.
   std::function<void(const std::string& run_id)> on_run_complete;
+  // Speak an older minor of the protocol (the version tests: a 1.1 server
+  // acknowledges blocks and verdicts once committed, never as durable).
+  // Unset: this build's (1.2, durable acknowledgements).
+  std::optional<uint32_t> speak_protocol_minor;
   // After each commit: "run.new" for a run first stored, "run.status" when
   // a run became complete or incomplete (GET /api/v1/events). May be null.
   EventBus* events = nullptr;
@@ -72,6 +77,7 @@ struct IngestCounters {
       commits{0}, runs_complete{0}, runs_incomplete{0}, blocks_orphan{0}, acks_sent{0}, heartbeats{0},
       monitoring_stored{0}, monitoring_duplicate{0}, storage_errors{0}, queue_bytes{0}, queue_peak_bytes{0},
       runs_verified_from_digest{0},
+      blocks_acked_durable{0},  // block acknowledgements sent as durable (protocol 1.2), counted per block
       blocks_rejected_by_dds{0};  // refused by the block reader's resource limits (re-sent by DDS)
   // Steady-clock ns of the first block received and of the last commit that
   // stored blocks or ended a run: their difference is the streaming span.

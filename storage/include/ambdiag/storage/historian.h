@@ -20,6 +20,7 @@
 // refused call is stored. Disk and SQLite failures throw StorageError.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -131,8 +132,22 @@ struct CheckpointStats {
   std::int64_t inline_by_writer = 0;  // by the writer, because the thread fell behind
   std::int64_t pages_copied = 0;      // log pages copied into the database file
   std::int64_t log_pages_last = 0;    // pages in the log at the last checkpoint
+  std::int64_t time_triggered = 0;   // started because a commit waited durable_within to be durable
   std::int64_t errors = 0;
   std::string last_error;
+  std::uint64_t commit_generation = 0, durable_generation = 0;  // Historian::commit_generation(), durable_generation()
+};
+
+// How the background checkpoints run (Historian::checkpoint_in_background).
+struct CheckpointOptions {
+  int trigger_pages = 1000;   // log pages after a commit that start a checkpoint in the thread
+  int inline_pages = 16000;   // the thread fell behind: the writer checkpoints itself
+  // A commit not yet durable after this long starts a checkpoint (the time
+  // trigger), so a slow stream's acks do not wait for the size trigger.
+  std::chrono::milliseconds durable_within{1000};
+  // synchronous = FULL on the writer: each commit fsyncs the log and is
+  // durable when it returns (docs/storage.md, "Durability", has the cost).
+  bool sync_commits = false;
 };
 
 class Historian {
@@ -208,7 +223,20 @@ class Historian {
   // checkpoints itself at 16 x that, so the log stays bounded. Stops with
   // the Historian. Call once, on a Mode::write historian.
   void checkpoint_in_background(int trigger_pages = 1000);
+  void checkpoint_in_background(const CheckpointOptions& opt);
   CheckpointStats checkpoint_stats() const;  // zeros when not started
+
+  // Durability of this writer's commits (needs checkpoint_in_background):
+  // every commit on this connection gets the next number, 1 being the state
+  // found at start (a process crash may have left committed but unsynced
+  // transactions in the log). durable_generation() is the highest number
+  // whose commit, with every one before it, is on disk for good: a power
+  // cut keeps it (docs/storage.md, "Durability"). The listener is called
+  // with each new durable number, from the checkpoint thread or the writer's
+  // (after its commit); it must be quick and must not throw.
+  std::uint64_t commit_generation() const;
+  std::uint64_t durable_generation() const;
+  void on_durable(std::function<void(std::uint64_t durable_generation)> listener);
 
   // --- pumps: models and references (service.h; historian_registry.cc) ---
   // A new model version of the pump (registered if new): 1 for the first.
