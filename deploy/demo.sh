@@ -9,7 +9,9 @@
 # the server concluded, read back over REST. The offline command-line demo is
 # deploy/demo-offline.sh.
 # Environment: AMBDIAG_DATA (shared data), AMBDIAG_DEMO_OUT (outputs),
-# AMBDIAG_DEMO_RUNS (runs per pump, default 6), AMBDIAG_DOMAIN (DDS domain).
+# AMBDIAG_DEMO_RUNS (runs per pump, default 6), AMBDIAG_DOMAIN (DDS domain),
+# AMBDIAG_DEMO_KEEP=1|0 (keep the server up for the web UI until Ctrl-C;
+# default: when run from a terminal).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${AMBDIAG_DATA:-../shared/data}
@@ -69,3 +71,13 @@ echo "== references set to the proposed first three runs; what the server conclu
 deploy/demo/service_client.py "$url" "$token" conclude P-201 P-202 P-203
 echo
 echo "outputs in $out/ (historian, logs); e.g. $url/api/v1/runs/{run_id}/bode.svg with the token"
+# Interactive (a terminal), the server stays up for the browser until
+# Ctrl-C; in scripts and CI it stops (AMBDIAG_DEMO_KEEP=1 / 0 forces either).
+keep=${AMBDIAG_DEMO_KEEP:-}
+[ -n "$keep" ] || { [ -t 0 ] && [ -t 1 ] && keep=1 || keep=0; }
+if [ "$keep" = 1 ]; then
+  echo "== web UI: $url/ (sign in with the token $token); Ctrl-C stops the server"
+  wait $server
+else
+  echo "== web UI: $url/ while the server runs (AMBDIAG_DEMO_KEEP=1 keeps it up; sign in with the token $token)"
+fi

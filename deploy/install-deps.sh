@@ -17,11 +17,17 @@ packages=(
   # The security tests' loopback capture (issue 21); they skip without it.
   tcpdump
   prometheus  # promtool: the metrics test checks GET /metrics with it
+  chromium    # the web UI's browser tests (headless, driven by playwright-core)
 )
+# Node.js (>= 18) and npm for the web UI and the test tools: Debian 12's
+# nodejs 18 and npm 9 unless a node is installed already (e.g. NodeSource's,
+# whose package replaces Debian's npm).
+command -v node >/dev/null && command -v npm >/dev/null || packages+=(nodejs npm)
 
 # npm packages the tests use, each folder pinned by its package-lock.json
 # (npm ci installs exactly that); skipped when already installed from it.
-npm_dirs=(tests/tools/openapi)  # an independent OpenAPI validator
+npm_dirs=(tests/tools/openapi  # an independent OpenAPI validator
+          web)                  # the web UI: uPlot, and playwright-core for its browser tests
 install_npm() {
   local root
   root="$(cd "$(dirname "$0")/.." && pwd)"

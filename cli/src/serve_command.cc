@@ -7,6 +7,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -60,7 +61,8 @@ int run_serve(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
-                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol"},
+                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
+                   "--web-dir"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -145,6 +147,10 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.events = &events;
   rest_opt.rate_limit_per_s = rate;
   rest_opt.rate_limit_burst = burst;
+  // The UI's files: --web-dir, else next to the binary (build tree or install).
+  rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
+  if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
+    throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
   rest_opt.health_extra = [&ingest, &historian, &analysis] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"ingest", ingest.health()},
@@ -162,6 +168,9 @@ int run_serve(const std::vector<std::string>& argv) {
   const int bound_port = rest.start();
   std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n", db->c_str(),
                opt.domain, opt.partitions.front().c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
+  if (!rest_opt.web_dir.empty())
+    std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
+                 bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
@@ -210,7 +219,7 @@ std::vector<Command> serve_commands() {
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
-           "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE]\n"
+           "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -229,6 +238,8 @@ std::vector<Command> serve_commands() {
            "Each analysed run is evaluated against the pump's alarm rules; --alarm-defaults FILE: the server's\n"
            "default rules (JSON {\"rules\": [...], \"plant_state\"?}, each rule over the built-in one of its id;\n"
            "docs/service.md \"Alarms\"), checked at the start.\n"
+           "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
+           "  ../share/ambdiag/web next to this binary; web/README.md).\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"

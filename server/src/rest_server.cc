@@ -97,6 +97,7 @@ struct RestServer::Impl {
     detail::add_trend_routes(routes);
     detail::add_grafana_routes(routes);
     detail::add_service_routes(routes, service);
+    detail::add_web_routes(routes);
     register_metrics();
   }
 

@@ -62,6 +62,8 @@ void add_analysis_routes(RouteTable& t);
 void add_trend_routes(RouteTable& t);
 // the Grafana data source under /api/v1/grafana (grafana_routes.cc).
 void add_grafana_routes(RouteTable& t);
+// the web UI's files, the fleet in one reply, a run's model FRF (web_routes.cc).
+void add_web_routes(RouteTable& t);
 // openapi.json, metrics, events: service_routes.h (they need the server's state).
 // alarms, their journal, KPIs and each pump's alarm rules (alarm_routes.cc).
 void add_alarm_routes(RouteTable& t);

@@ -8,6 +8,7 @@ namespace {
 
 std::vector<PatternSegment> parse(const std::string& pattern) {
   if (pattern.empty() || pattern[0] != '/') throw std::logic_error("route pattern must start with '/': " + pattern);
+  if (pattern == "/") return {{"", false, false}};  // the root: split_path("/") is one empty segment
   std::vector<PatternSegment> out;
   int rests = 0;
   size_t pos = 1;

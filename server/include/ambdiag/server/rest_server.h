@@ -15,6 +15,7 @@
 //   GET /api/v1/openapi.json              OpenAPI 3.1 of every route (from the route table)
 //   GET /metrics                           Prometheus text format 0.0.4, no token
 //   GET /api/v1/events                     server-sent events (new runs, jobs, ...)
+//   GET /, GET /ui/{path}                  the web UI's files (RestOptions::web_dir), no token
 //
 // JSON everywhere else; errors are {"error": "..."} with 400 (bad request),
 // 401 (no or unknown token), 403 (role too low), 404 (unknown path, pump,
@@ -83,6 +84,9 @@ struct RestOptions {
   // Open routes are not limited.
   double rate_limit_per_s = 0;
   double rate_limit_burst = 100;
+  // The web UI's built files (GET / and /ui/...; web/README.md); "": GET /
+  // answers 404 saying the UI is not installed.
+  std::string web_dir;
 };
 
 class RestServer {
@@ -105,6 +109,12 @@ class RestServer {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Where the web UI's built files are for a server binary at `exe`: the
+// first of EXE_DIR/../web (the build tree: build/cli/ambdiag and
+// build/web) and EXE_DIR/../share/ambdiag/web (installed) that holds an
+// index.html; "" when neither does.
+std::string find_web_dir(const std::string& exe);
 
 // Percent-encodes everything but RFC 3986 unreserved characters: how a
 // run_id goes into a URL path segment.

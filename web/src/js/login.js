@@ -1,0 +1,30 @@
+// Sign in with a token from `ambdiag token add`; it is kept for this
+// browser tab only (sessionStorage).
+import { token } from './api.js';
+import { h } from './dom.js';
+
+export function loginView({ main, crumbs }, onSignedIn) {
+  crumbs([['Sign in']]);
+  const input = h('input', { type: 'password', id: 'token', autocomplete: 'off', placeholder: 'token', 'aria-label': 'token' });
+  const msg = h('p', { class: 'muted' }, 'A token from `ambdiag token add`. It is kept for this browser tab only.');
+  const form = h(
+    'form',
+    {
+      class: 'panel login',
+      onsubmit: (e) => {
+        e.preventDefault();
+        token.set(input.value.trim());
+        onSignedIn();
+      },
+    },
+    h('h1', {}, 'Sign in'),
+    input,
+    h('button', { type: 'submit', id: 'sign-in' }, 'Sign in'),
+    msg,
+  );
+  if (token.get()) msg.replaceWith(h('p', { class: 'error' }, 'The token was refused (unknown or revoked).'));
+  token.set('');
+  main.append(form);
+  input.focus();
+  return {};
+}
