@@ -29,12 +29,6 @@ OtherSpeeds::OtherSpeeds(const std::vector<FrfData>& recordings, double primary_
   }
 }
 
-double OtherSpeeds::values() const {
-  double n = 0.0;
-  for (const auto& e : evals_) n += 2.0 * static_cast<double>(e.measured().entries.size() * e.measured().freq_hz.size());
-  return n;
-}
-
 std::vector<std::complex<double>> OtherSpeeds::residual(const std::function<PlantVariant(double scale)>& build, double exponent) {
   std::vector<std::complex<double>> out;
   for (auto& e : evals_) {
@@ -121,7 +115,6 @@ bool has_law(const std::vector<Selected>& sel) {
 }
 
 
-// Declared and explained in explain_speeds.h.
 SpeedJudgement judge_at_other_speeds(Selector& engine, OtherSpeeds& others, std::vector<Selected>& sel,
                                      std::vector<Selector::Alternative>& alternatives,
                                      const std::function<void(const std::string&)>& progress) {

@@ -37,8 +37,6 @@ class OtherSpeeds {
   OtherSpeeds(const std::vector<FrfData>& recordings, double primary_rpm);
 
   bool empty() const { return evals_.empty(); }
-  // Complex values compared over all other recordings (for penalties).
-  double values() const;
 
   // The weighted residuals (H_model - H_measured) / sigma of every other
   // recording, concatenated; `build(scale)` gives the variant with its
