@@ -19,10 +19,12 @@
 
 namespace ambdiag::storage {
 
-std::string now_utc() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t t = std::chrono::system_clock::to_time_t(now);
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+std::string now_utc() { return utc_ms(std::chrono::system_clock::now()); }
+
+std::string utc_ms(std::chrono::system_clock::time_point at) {
+  const auto total_ms = std::chrono::duration_cast<std::chrono::milliseconds>(at.time_since_epoch()).count();
+  const std::time_t t = static_cast<std::time_t>(total_ms >= 0 ? total_ms / 1000 : -((999 - total_ms) / 1000));
+  const auto ms = total_ms - static_cast<std::int64_t>(t) * 1000;  // 0..999, also before 1970
   std::tm tm{};
   gmtime_r(&t, &tm);
   char buf[96];
@@ -49,12 +51,12 @@ namespace {
 #define AMBDIAG_RUN_COLUMNS                                                                                  \
   "run_id, pump_id, kind, started_at, speed_rpm, sample_rate_hz, n_channels, status, status_reason, "       \
   "expected_frames, expected_checksum, received_chunks, received_frames, duplicate_chunks, created_at, " \
-  "updated_at, ended_at, checksum_kind"
+  "updated_at, ended_at, checksum_kind, samples_dropped_at, samples_dropped_bytes, frf_dropped_at, frf_dropped_bytes"
 
 // Counted from the list, so a column added there moves what follows it
 // (find_run's header) with it.
 constexpr int kRunColumns = static_cast<int>(std::ranges::count(std::string_view(AMBDIAG_RUN_COLUMNS), ',')) + 1;
-static_assert(kRunColumns == 18, "read_run_row reads columns 0..17");
+static_assert(kRunColumns == 22, "read_run_row reads columns 0..21");
 
 RunInfo read_run_row(const Stmt& s) {
   RunInfo r;
@@ -76,6 +78,10 @@ RunInfo read_run_row(const Stmt& s) {
   r.updated_at = s.col_text(15);
   r.ended_at = s.col_opt_text(16);
   if (auto k = s.col_opt_text(17)) r.checksum_kind = checksum_kind_from(*k);
+  r.samples_dropped_at = s.col_opt_text(18);
+  r.samples_dropped_bytes = s.col_int(19);
+  r.frf_dropped_at = s.col_opt_text(20);
+  r.frf_dropped_bytes = s.col_int(21);
   return r;
 }
 
@@ -156,6 +162,7 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
   auto& db = impl_->db;
   Transaction tx(db, Transaction::Kind::write);
   const auto st = impl_->run_state(run_id, "put_chunks");
+  Impl::require_samples(st, run_id, "put_chunks");  // neither restored nor compared: the bytes are gone
   const auto frame_bytes = static_cast<std::int64_t>(st.n_channels) * 4;
   for (const auto& c : chunks) {
     const std::string where = ctx + " chunk seq " + std::to_string(c.seq);
@@ -265,6 +272,7 @@ EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frame
                      " frames and checksum " + hex64(st.expected_checksum.value_or(0)) + "; this end says " +
                      std::to_string(total_frames) + " frames and " + hex64(checksum));
   }
+  Impl::require_samples(st, run_id, "end_run");  // nothing left to check
   EndResult r;
   ChunkScan scan;
   if (digest && digest->kind == kind) {
@@ -386,7 +394,7 @@ std::string Historian::read_samples(const std::string& run_id) {
 bool Historian::stream_samples(const std::string& run_id,
                                const std::function<bool(std::span<const std::uint8_t>)>& sink) {
   Transaction tx(impl_->db, Transaction::Kind::read);
-  impl_->run_state(run_id, "samples");
+  Impl::require_samples(impl_->run_state(run_id, "samples"), run_id, "run");
   auto& s = impl_->stmt("SELECT data FROM sample_chunks WHERE run_id = ? ORDER BY seq");
   s.bind(1, run_id);
   while (s.step()) {

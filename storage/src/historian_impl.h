@@ -3,6 +3,7 @@
 #pragma once
 
 #include <bit>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -20,6 +21,9 @@ using detail::Stmt;
 using detail::Transaction;
 
 std::string now_utc();  // server clock, ISO 8601 UTC with milliseconds
+// The same fixed format of any time ("2026-11-26T10:00:00.000Z"): text
+// order is time order, so it compares with created_at in SQL.
+std::string utc_ms(std::chrono::system_clock::time_point at);
 std::string hex64(std::uint64_t v);
 RunStatus status_from_text(const std::string& s);
 inline std::string quoted(const std::string& id) { return "'" + id + "'"; }
@@ -68,15 +72,25 @@ struct Historian::Impl {
     RunStatus status;
     std::optional<std::int64_t> expected_frames;
     std::optional<std::uint64_t> expected_checksum;
+    std::optional<std::string> samples_dropped_at;  // retention dropped (or is dropping) the samples
   };
   RunState run_state(const std::string& run_id, const char* what) {
-    auto& s = stmt("SELECT n_channels, status, expected_frames, expected_checksum FROM runs WHERE run_id = ?");
+    auto& s = stmt(
+        "SELECT n_channels, status, expected_frames, expected_checksum, samples_dropped_at FROM runs WHERE run_id = ?");
     s.bind(1, run_id);
     if (!s.step()) throw InputError(std::string(what) + ": unknown run " + quoted(run_id));
-    RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt};
+    RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt,
+                s.col_opt_text(4)};
     if (auto c = s.col_opt_int(3)) st.expected_checksum = std::bit_cast<std::uint64_t>(*c);
     s.reset();
     return st;
+  }
+  // InputError when retention dropped the run's samples: "WHAT 'RUN': its
+  // samples were dropped by retention at T".
+  static void require_samples(const RunState& st, const std::string& run_id, const char* what) {
+    if (st.samples_dropped_at)
+      throw InputError(std::string(what) + " " + quoted(run_id) + ": its samples were dropped by retention at " +
+                       *st.samples_dropped_at);
   }
 };
 

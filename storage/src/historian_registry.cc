@@ -76,15 +76,25 @@ int Historian::put_reference(const std::string& pump_id, const std::vector<std::
   for (const auto& run_id : run_ids) {
     const std::string where = ctx + ": run " + quoted(run_id);
     if (!seen.insert(run_id).second) throw InputError(where + " is listed twice");
-    auto& s = impl_->stmt("SELECT pump_id, kind, status, status_reason FROM runs WHERE run_id = ?");
+    // A run whose samples retention dropped is learnt from the frf.csv an
+    // analysis of it kept (the reference job reads that first).
+    auto& s = impl_->stmt(
+        "SELECT pump_id, kind, status, status_reason, samples_dropped_at, EXISTS (SELECT 1 FROM jobs j JOIN "
+        "job_artifacts a ON a.job_id = j.job_id WHERE j.run_id = runs.run_id AND j.kind = 'analysis' AND "
+        "j.status = 'done' AND a.name = 'frf.csv') FROM runs WHERE run_id = ?");
     s.bind(1, run_id);
     if (!s.step()) throw InputError(where + ": unknown run");
     const std::string run_pump = s.col_text(0), kind = s.col_text(1), status = s.col_text(2), reason = s.col_text(3);
+    const auto dropped_at = s.col_opt_text(4);
+    const bool frf_kept = s.col_int(5) != 0;
     s.reset();
     if (run_pump != pump_id) throw InputError(where + " is of pump " + quoted(run_pump));
     if (status != "complete")
       throw InputError(where + " is " + status + (reason.empty() ? "" : " (" + reason + ")") + ", not complete");
     if (kind != "identification") throw InputError(where + " is a " + kind + " run, not an identification run");
+    if (dropped_at && !frf_kept)
+      throw InputError(where + ": its samples were dropped by retention at " + *dropped_at +
+                       " and no analysis of it kept its FRF");
   }
   const auto version = impl_->next_version("SELECT coalesce(max(version), 0) + 1 FROM pump_references WHERE pump_id = ?", pump_id);
   impl_->stmt("INSERT INTO pump_references (pump_id, version, created_at, created_by) VALUES (?, ?, ?, ?)")

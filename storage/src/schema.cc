@@ -341,6 +341,44 @@ CREATE TABLE alarm_cursors (
   last_valid_at      TEXT
 ) STRICT;
 )sql"},
+    // v7: retention (retention.h; docs/storage.md "Retention"). What a sweep
+    // dropped of each run stays on the run's row, so the run stays listed:
+    // samples_state goes held -> dropping (marked, chunks being deleted in
+    // transactions of a bounded size) -> dropped; frf_dropped_at marks the
+    // analyses' files gone. The partial indexes hold only the runs a sweep
+    // still looks at (samples held, a drop to finish, files held), so a sweep
+    // never walks the runs it is done with. A run is kept while a reference
+    // version, an open alarm or a queued or running job names it: indexes
+    // to ask that by run. Each pump's policy is versioned like its models;
+    // the lease lets one sweep run at a time on a database.
+    {7, R"sql(
+ALTER TABLE runs ADD COLUMN samples_state TEXT NOT NULL DEFAULT 'held'
+  CHECK (samples_state IN ('held', 'dropping', 'dropped'));
+ALTER TABLE runs ADD COLUMN samples_dropped_at TEXT;
+ALTER TABLE runs ADD COLUMN samples_dropped_bytes INTEGER NOT NULL DEFAULT 0 CHECK (samples_dropped_bytes >= 0);
+ALTER TABLE runs ADD COLUMN frf_dropped_at TEXT;
+ALTER TABLE runs ADD COLUMN frf_dropped_bytes INTEGER NOT NULL DEFAULT 0 CHECK (frf_dropped_bytes >= 0);
+CREATE INDEX runs_samples_held ON runs(pump_id, created_at) WHERE samples_state = 'held';
+CREATE INDEX runs_samples_dropping ON runs(run_id) WHERE samples_state = 'dropping';
+CREATE INDEX runs_frf_held ON runs(pump_id, created_at) WHERE frf_dropped_at IS NULL;
+CREATE INDEX reference_runs_by_run ON reference_runs(run_id);
+CREATE INDEX alarms_open_by_run ON alarms(run_id) WHERE state <> 'normal';
+
+CREATE TABLE retention_policies (
+  pump_id      TEXT NOT NULL REFERENCES pumps(pump_id),
+  version      INTEGER NOT NULL CHECK (version >= 1),
+  policy_json  TEXT NOT NULL,
+  created_at   TEXT NOT NULL,
+  created_by   TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY (pump_id, version)
+) STRICT;
+
+CREATE TABLE retention_lease (
+  name        TEXT PRIMARY KEY,
+  holder      TEXT NOT NULL,
+  expires_at  TEXT NOT NULL
+) STRICT;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -42,6 +42,14 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Undoes migration 7 (retention): its tables, indexes and the runs' columns.
+inline constexpr const char* kUndoRetentionV7Sql =
+    "DROP TABLE retention_lease; DROP TABLE retention_policies; DROP INDEX alarms_open_by_run; "
+    "DROP INDEX reference_runs_by_run; DROP INDEX runs_frf_held; DROP INDEX runs_samples_dropping; "
+    "DROP INDEX runs_samples_held; ALTER TABLE runs DROP COLUMN frf_dropped_bytes; "
+    "ALTER TABLE runs DROP COLUMN frf_dropped_at; ALTER TABLE runs DROP COLUMN samples_dropped_bytes; "
+    "ALTER TABLE runs DROP COLUMN samples_dropped_at; ALTER TABLE runs DROP COLUMN samples_state;";
+
 // Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
 // for the tests that take a file back to an older schema version.
 inline constexpr const char* kUndoAlarmsV6Sql =
@@ -64,6 +72,7 @@ inline constexpr const char* kUndoServiceV4Sql =
 // A file of the current schema taken back to what migration `version`
 // (3 or 4) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
+  raw_exec(path, kUndoRetentionV7Sql);
   raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path, kUndoTrendsV5Sql);
   if (version < 4) raw_exec(path, kUndoServiceV4Sql);

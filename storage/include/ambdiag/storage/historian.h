@@ -35,6 +35,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/alarms.h"
 #include "ambdiag/storage/monitoring.h"
+#include "ambdiag/storage/retention.h"
 #include "ambdiag/storage/service.h"
 #include "ambdiag/storage/trends.h"
 
@@ -96,7 +97,13 @@ struct RunInfo {
   std::string created_at, updated_at;  // server clock, ISO 8601 UTC
   std::optional<std::string> ended_at;
   std::string header_json;  // run.json text (find_run only; empty in lists)
+  // Retention (retention.h). Set: the samples are gone (a drop a crashed
+  // sweep began counts as gone: the next sweep finishes it), with the bytes
+  // the sweep deleted; the analyses' files likewise.
+  std::optional<std::string> samples_dropped_at, frf_dropped_at;
+  std::int64_t samples_dropped_bytes = 0, frf_dropped_bytes = 0;
 
+  // What the run received (a dropped run keeps its figure).
   std::int64_t samples_bytes() const { return received_frames * n_channels * 4; }
 };
 
@@ -175,7 +182,7 @@ class Historian {
   // with the same bytes and frames is a duplicate: counted and ignored; with
   // other bytes it throws. Throws for an unknown run, a size that is not
   // n_frames * n_channels * 4, negative seq/frames, or a new chunk for a
-  // complete run.
+  // complete run or a run whose samples retention dropped.
   PutResult put_chunks(const std::string& run_id, std::span<const Chunk> chunks);
   // The run end: checks seq 0..n-1 without gaps, first_frame contiguous,
   // the frame total and the checksum, reading the run once from the
@@ -249,7 +256,9 @@ class Historian {
   std::vector<ModelVersion> list_models(const std::string& pump_id);
   // A new reference version of the pump. Throws InputError naming the run
   // when a run is unknown, of another pump, not `complete`, not of kind
-  // `identification`, or listed twice, or when the list is empty.
+  // `identification`, or listed twice, or when the list is empty, and for a
+  // run whose samples retention dropped when no analysis of it kept its
+  // frf.csv (the reference is learnt from the runs' FRFs).
   int put_reference(const std::string& pump_id, const std::vector<std::string>& run_ids,
                     const std::string& created_by);
   std::optional<ReferenceVersion> find_reference(const std::string& pump_id,
@@ -359,6 +368,25 @@ class Historian {
   // in that order; the first of all when `after` is empty.
   std::optional<RunInfo> next_run_for_alarms(const std::string& pump_id, const std::optional<std::pair<std::string, std::string>>& after);
 
+  // --- retention (retention.h; historian_retention.cc) ---
+  // A new version of the pump's own policy: `policy_json`, an object of
+  // kRetentionKeys (checked: InputError naming the key; stored as given).
+  // InputError for an unknown pump.
+  int put_retention_policy(const std::string& pump_id, const std::string& policy_json, const std::string& created_by);
+  // The newest version; nullopt when the pump has set none.
+  std::optional<RetentionVersion> find_retention_policy(const std::string& pump_id);
+  std::vector<RetentionVersion> list_retention_policies(const std::string& pump_id);  // oldest first
+  // The pump's newest policy over `defaults` (the defaults when it has none).
+  RetentionPolicy effective_retention_policy(const std::string& pump_id, const RetentionPolicy& defaults);
+  RetentionUsage retention_usage(const std::string& pump_id);
+  // One sweep over every pump with its effective policy (its own over
+  // `defaults`): drops what the policies no longer keep, in transactions of
+  // a bounded size, each all or nothing, and finishes drops an earlier sweep
+  // left half done. Safe beside ingest, jobs and other sweeps (each drop
+  // re-checks its run inside its transaction; the lease keeps a second
+  // sweep out: report.skipped). A dry run works on a read connection.
+  SweepReport sweep_retention(const RetentionPolicy& defaults, const SweepOptions& options = {});
+
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
   std::optional<PumpSummary> find_pump(const std::string& pump_id);
@@ -370,7 +398,8 @@ class Historian {
   std::vector<MonitoringSnapshot> list_monitoring(const std::string& pump_id, std::int64_t since_ns,
                                                   std::int64_t limit);
   // The chunks held, concatenated in seq order: for a complete run exactly
-  // the recording's samples.f32. Throws InputError for an unknown run.
+  // the recording's samples.f32. Throws InputError for an unknown run and
+  // for a run whose samples retention dropped (naming when).
   std::string read_samples(const std::string& run_id);
   // Same bytes, one call per chunk in seq order, inside one read snapshot;
   // stops early (returning false) when `sink` returns false.

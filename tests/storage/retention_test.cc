@@ -1,0 +1,437 @@
+// Retention (schema v7): policies as JSON and per pump, the sweep by age
+// and by size, what it never drops (reference runs, runs an open alarm or a
+// queued or running job names, runs still receiving), FRFs after samples,
+// monitoring, idempotency, the lease, a sweep stopped half way, and what a
+// dropped run looks like to readers and writers.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <functional>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "ambdiag/core/error.h"
+#include "ambdiag/storage/historian.h"
+#include "retention_fixture.h"
+#include "test_support.h"
+
+namespace ambdiag::storage {
+namespace {
+
+using nlohmann::json;
+
+std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::vector<std::string> dropped_ids(const SweepReport& r, const std::string& what = "samples") {
+  std::vector<std::string> out;
+  for (const auto& s : r.runs)
+    if (s.what == what) out.push_back(s.run_id);
+  return out;
+}
+
+TEST(RetentionPolicy, KeysOverrideTheBaseAndNullKeepsForEver) {
+  const RetentionPolicy base;  // the built-in defaults
+  EXPECT_EQ(base.samples_days, 90.0);
+  EXPECT_EQ(base.frf_days, 730.0);
+  EXPECT_FALSE(base.samples_bytes);
+  EXPECT_FALSE(base.monitoring_days);
+  const auto p = retention_policy_from_json(json::parse(R"({"samples_days": 7.5, "samples_bytes": 1e9, "frf_days": null})"),
+                                            base, "policy");
+  EXPECT_EQ(p.samples_days, 7.5);
+  EXPECT_EQ(p.samples_bytes, 1000000000);
+  EXPECT_FALSE(p.frf_days);
+  EXPECT_FALSE(p.monitoring_days);  // not given: the base's
+  EXPECT_EQ(to_json(p), json::parse(R"({"samples_days": 7.5, "samples_bytes": 1000000000, "frf_days": null, "monitoring_days": null})"));
+  EXPECT_EQ(to_json(retention_policy_from_json(json::object(), base, "policy")), to_json(base));
+}
+
+TEST(RetentionPolicy, EveryBadValueIsRefusedNamingItsKey) {
+  const RetentionPolicy base;
+  const auto error = [&](const char* text) { return error_of([&] { retention_policy_from_json(json::parse(text), base, "P"); }); };
+  EXPECT_NE(error(R"({"sample_days": 3})").find("P: sample_days: unknown key (known: samples_days"), std::string::npos);
+  EXPECT_NE(error(R"({"samples_days": -1})").find("P: samples_days: must be a number of days in 0..36500"), std::string::npos);
+  EXPECT_NE(error(R"({"frf_days": "2y"})").find("P: frf_days:"), std::string::npos);
+  EXPECT_NE(error(R"({"monitoring_days": 40000})").find("P: monitoring_days:"), std::string::npos);
+  EXPECT_NE(error(R"({"samples_bytes": 1.5})").find("P: samples_bytes: must be a whole number"), std::string::npos);
+  EXPECT_NE(error(R"({"samples_bytes": -4})").find("P: samples_bytes:"), std::string::npos);
+  EXPECT_NE(error(R"({"samples_bytes": true})").find("P: samples_bytes:"), std::string::npos);
+  EXPECT_NE(error("[1]").find("P: must be a JSON object"), std::string::npos);
+}
+
+TEST(RetentionPolicy, APumpsPolicyIsVersionedWithWhoAndWhen) {
+  auto h = Historian::open(db_path());
+  EXPECT_NE(error_of([&] { h.put_retention_policy("P-7", "{}", "erin"); }).find("unknown pump"), std::string::npos);
+  store_run(h, "P-7/r1", "P-7", 10, 1);
+  EXPECT_FALSE(h.find_retention_policy("P-7"));
+  EXPECT_EQ(h.put_retention_policy("P-7", R"({"samples_days": 30})", "erin"), 1);
+  EXPECT_EQ(h.put_retention_policy("P-7", R"({"samples_bytes": 5000000, "frf_days": null})", "carl"), 2);
+  // A bad one names the key and stores nothing.
+  EXPECT_NE(error_of([&] { h.put_retention_policy("P-7", R"({"samples_days": "x"})", "erin"); }).find("samples_days"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { h.put_retention_policy("P-7", "{nope", "erin"); }).find("not JSON"), std::string::npos);
+  const auto list = h.list_retention_policies("P-7");
+  ASSERT_EQ(list.size(), 2u);
+  EXPECT_EQ(list[0].created_by, "erin");
+  EXPECT_EQ(json::parse(list[0].policy_json), json::parse(R"({"samples_days": 30})"));
+  EXPECT_FALSE(list[0].created_at.empty());
+  EXPECT_EQ(h.find_retention_policy("P-7")->version, 2);
+  // The newest over the defaults: samples_days from the defaults again.
+  RetentionPolicy defaults;
+  defaults.samples_days = 10;
+  const auto p = h.effective_retention_policy("P-7", defaults);
+  EXPECT_EQ(p.samples_days, 10.0);
+  EXPECT_EQ(p.samples_bytes, 5000000);
+  EXPECT_FALSE(p.frf_days);
+}
+
+TEST(RetentionSweep, DropsTheSamplesOfRunsPastTheAgeAndKeepsTheRunsListed) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  const auto old_run = store_run(h, "P-7/old", "P-7", 3000, 1);
+  const auto young = store_run(h, "P-7/young", "P-7", 3000, 2);
+  received_days_ago(path, old_run.run_id, 31);
+  received_days_ago(path, young.run_id, 29);
+  const auto before = h.find_run(old_run.run_id);
+
+  const auto r = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(dropped_ids(r), std::vector<std::string>{old_run.run_id});
+  EXPECT_EQ(r.samples_runs, 1);
+  EXPECT_EQ(r.samples_bytes, static_cast<std::int64_t>(old_run.bytes.size()));
+  EXPECT_EQ(r.runs[0].reason, "age");
+  EXPECT_EQ(r.transactions, 1);
+  EXPECT_GT(r.longest_transaction_s, 0.0);
+  EXPECT_EQ(chunks_held(path, old_run.run_id), 0);
+  EXPECT_EQ(chunks_held(path, young.run_id), 3);
+
+  // Still listed and complete, with what it had and when it was dropped.
+  const auto after = h.find_run(old_run.run_id);
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->status, RunStatus::complete);
+  EXPECT_EQ(after->samples_bytes(), before->samples_bytes());
+  EXPECT_TRUE(after->samples_dropped_at);
+  EXPECT_EQ(after->samples_dropped_bytes, static_cast<std::int64_t>(old_run.bytes.size()));
+  EXPECT_EQ(after->header_json, before->header_json);
+  EXPECT_EQ(h.list_runs("P-7").size(), 2u);
+  EXPECT_FALSE(h.find_run(young.run_id)->samples_dropped_at);
+  EXPECT_EQ(ambdiag::testing::as_string(young.bytes), h.read_samples(young.run_id));
+
+  // Readers and writers are told, naming the run and the date.
+  const std::string read = error_of([&] { h.read_samples(old_run.run_id); });
+  EXPECT_NE(read.find("'P-7/old': its samples were dropped by retention at " + *after->samples_dropped_at), std::string::npos) << read;
+  const auto chunks = ambdiag::testing::cut_chunks(old_run.bytes, 2, 1000);
+  EXPECT_NE(error_of([&] { h.put_chunks(old_run.run_id, chunks); }).find("dropped by retention"), std::string::npos);
+  EXPECT_EQ(chunks_held(path, old_run.run_id), 0);
+  const auto usage = h.retention_usage("P-7");
+  EXPECT_EQ(usage.runs_with_samples, 1);
+  EXPECT_EQ(usage.samples_bytes_held, static_cast<std::int64_t>(young.bytes.size()));
+  EXPECT_EQ(usage.runs_samples_dropped, 1);
+  EXPECT_EQ(usage.samples_bytes_dropped, static_cast<std::int64_t>(old_run.bytes.size()));
+
+  // Idempotent: the next sweep finds nothing.
+  const auto again = h.sweep_retention(samples_for_days(30));
+  EXPECT_TRUE(again.runs.empty());
+  EXPECT_EQ(again.transactions, 0);
+  EXPECT_EQ(raw_integrity_check(path), "ok");
+}
+
+TEST(RetentionSweep, BySizeDropsTheOldestRunsUntilThePumpHoldsNoMore) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  std::vector<StoredRun> runs;
+  for (int i = 0; i < 5; ++i) {  // 16 000 bytes each, received a day apart, oldest first
+    runs.push_back(store_run(h, "P-7/r" + std::to_string(i), "P-7", 2000, static_cast<unsigned>(i)));
+    received_days_ago(path, runs.back().run_id, 10 - i);
+  }
+  store_run(h, "P-8/r0", "P-8", 2000, 9);  // another pump: its own budget
+  RetentionPolicy p;
+  p.samples_days.reset();
+  p.samples_bytes = 40000;  // 80 000 held: the three oldest go (32 000 left)
+  const auto r = h.sweep_retention(p);
+  EXPECT_EQ(dropped_ids(r), (std::vector<std::string>{"P-7/r0", "P-7/r1", "P-7/r2"}));
+  for (const auto& s : r.runs) EXPECT_EQ(s.reason, "size");
+  EXPECT_EQ(h.retention_usage("P-7").samples_bytes_held, 32000);
+  EXPECT_EQ(samples_state(h, "P-8/r0"), "held");
+  EXPECT_TRUE(h.sweep_retention(p).runs.empty());
+}
+
+TEST(RetentionSweep, AgeAndSizeTogetherAndAPumpsOwnPolicyOverTheDefaults) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  for (int i = 0; i < 4; ++i) {
+    store_run(h, "P-7/r" + std::to_string(i), "P-7", 2000, static_cast<unsigned>(i));
+    received_days_ago(path, "P-7/r" + std::to_string(i), 10 - i);  // 10, 9, 8, 7 days
+    store_run(h, "P-8/r" + std::to_string(i), "P-8", 2000, static_cast<unsigned>(i));
+    received_days_ago(path, "P-8/r" + std::to_string(i), 10 - i);
+  }
+  // Defaults: 9.5 days. P-8 keeps 100 days but at most 2 runs' worth.
+  h.put_retention_policy("P-8", R"({"samples_days": 100, "samples_bytes": 32000})", "erin");
+  const auto r = h.sweep_retention(samples_for_days(9.5));
+  EXPECT_EQ(dropped_ids(r), (std::vector<std::string>{"P-7/r0", "P-8/r0", "P-8/r1"}));
+  EXPECT_EQ(r.pumps, 2);
+}
+
+TEST(RetentionSweep, NeverDropsReferenceRunsRunsOfOpenAlarmsOrPendingJobsOrRunsStillReceiving) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  for (const char* id : {"P-7/ref1", "P-7/ref2", "P-7/alarm", "P-7/closed", "P-7/queued", "P-7/running", "P-7/done", "P-7/plain"})
+    store_run(h, id, "P-7", 500, 1, 500, true);
+  h.begin_run(run_header_from_json(ambdiag::testing::run_json_text("P-7/receiving", 2, "P-7")));
+  h.put_chunks("P-7/receiving", ambdiag::testing::cut_chunks(ambdiag::testing::samples_bytes(500, 2, 3), 2, 500));
+  h.put_reference("P-7", {"P-7/ref1", "P-7/ref2"}, "erin");
+  h.put_reference("P-7", {"P-7/ref2", "P-7/plain"}, "erin");  // a newer version: ref1 stays needed by the old one
+  h.enqueue_job({"analysis", "P-7", "P-7/queued", 1, 0});
+  h.enqueue_job({"explain", "P-7", "P-7/running", 1, 0});
+  h.enqueue_job({"analysis", "P-7", "P-7/done", 1, 0});
+  for (int i = 0; i < 2; ++i) {  // claims oldest first: queued's job is claimed and finished, running's stays running
+    const auto j = h.claim_job("w");
+    if (j->key.run_id == "P-7/queued") {
+      h.finish_job(j->job_id, j->attempts, "{}");
+      h.enqueue_job({"analysis", "P-7", "P-7/queued", 2, 0});  // queued again (a new model)
+    }
+  }
+  const auto j = h.claim_job("w");
+  ASSERT_EQ(j->key.run_id, "P-7/done");
+  h.finish_job(j->job_id, j->attempts, "{}");
+  AlarmChanges c;
+  c.pump_id = "P-7";
+  for (const char* run : {"P-7/alarm", "P-7/closed"}) {
+    AlarmRecord a;
+    a.pump_id = "P-7";
+    a.rule = std::string("rule-") + run;
+    a.severity = "high";
+    a.state = std::string(run) == "P-7/alarm" ? "ack_active" : "normal";
+    a.active = a.state != "normal";
+    a.acknowledged = true;
+    a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
+    a.run_id = run;
+    a.message = "m";
+    c.alarms.push_back(a);
+  }
+  h.apply_alarm_changes(c);
+  for (const auto& r : h.list_runs("P-7")) received_days_ago(path, r.run_id, 400);
+
+  const auto r = h.sweep_retention(samples_for_days(1));
+  std::vector<std::string> got = dropped_ids(r);
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, (std::vector<std::string>{"P-7/closed", "P-7/done"}));
+  for (const char* kept : {"P-7/ref1", "P-7/ref2", "P-7/plain", "P-7/alarm", "P-7/queued", "P-7/running", "P-7/receiving"})
+    EXPECT_EQ(samples_state(h, kept), "held") << kept;
+  EXPECT_EQ(chunks_held(path, "P-7/receiving"), 1);
+}
+
+TEST(RetentionSweep, FrfsGoAfterTheSamplesOnlyTheAnalysesFilesAndKeepTheResults) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  store_run(h, "P-7/a", "P-7", 500, 1, 500, true);
+  store_run(h, "P-7/b", "P-7", 500, 2, 500, true);
+  const std::vector<JobArtifact> files = {{"frf.csv", "text/csv", std::string(3000, 'f')}, {"bode.svg", "image/svg+xml", "<svg/>"}};
+  std::map<std::string, std::int64_t> analysis_of;
+  for (const char* run : {"P-7/a", "P-7/b"}) {
+    h.enqueue_job({"analysis", "P-7", run, 1, 0});
+    const auto j = h.claim_job("w");
+    h.finish_job(j->job_id, j->attempts, R"({"nrmse": 0.1})", files);
+    analysis_of[run] = j->job_id;
+  }
+  h.enqueue_job({"explain", "P-7", "P-7/a", 1, 0});
+  const auto ex = h.claim_job("w");
+  h.finish_job(ex->job_id, ex->attempts, "{}", {{"improved_model.json", "application/json", "{}"}});
+  received_days_ago(path, "P-7/a", 40);
+  received_days_ago(path, "P-7/b", 40);
+
+  RetentionPolicy p = samples_for_days(30);
+  p.frf_days = 35;
+  h.put_retention_policy("P-7", R"({"samples_days": 45})", "erin");  // b's pump keeps samples longer...
+  auto r = h.sweep_retention(p);
+  EXPECT_TRUE(r.runs.empty()) << "FRFs are not dropped while the samples are held";
+  h.put_retention_policy("P-7", "{}", "erin");  // back to the defaults
+  r = h.sweep_retention(p);
+  EXPECT_EQ(dropped_ids(r, "samples").size(), 2u);
+  EXPECT_EQ(dropped_ids(r, "frf").size(), 2u);
+  EXPECT_EQ(r.frf_bytes, 2 * static_cast<std::int64_t>(3000 + 6));
+  for (const char* run : {"P-7/a", "P-7/b"}) {
+    EXPECT_TRUE(h.list_artifacts(analysis_of[run]).empty()) << run;
+    EXPECT_EQ(h.find_job(analysis_of[run])->result_json, R"({"nrmse": 0.1})") << "the result is kept";
+    const auto info = h.find_run(run);
+    EXPECT_TRUE(info->frf_dropped_at);
+    EXPECT_EQ(info->frf_dropped_bytes, 3006);
+  }
+  EXPECT_TRUE(h.find_artifact(ex->job_id, "improved_model.json")) << "an explain job's files are kept";
+  EXPECT_TRUE(h.sweep_retention(p).runs.empty());
+}
+
+TEST(RetentionSweep, AReferenceNeedsAnFrfOnceTheSamplesAreGone) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  store_run(h, "P-7/a", "P-7", 500, 1, 500, true);
+  store_run(h, "P-7/b", "P-7", 500, 2, 500, true);
+  store_run(h, "P-7/c", "P-7", 500, 3, 500, true);
+  h.enqueue_job({"analysis", "P-7", "P-7/a", 1, 0});
+  const auto j = h.claim_job("w");
+  h.finish_job(j->job_id, j->attempts, "{}", {{"frf.csv", "text/csv", "f"}});
+  for (const char* run : {"P-7/a", "P-7/b"}) received_days_ago(path, run, 100);
+  EXPECT_EQ(h.sweep_retention(samples_for_days(30)).samples_runs, 2);
+  // a kept its FRF: it may be a reference run; b did not.
+  const std::string e = error_of([&] { h.put_reference("P-7", {"P-7/c", "P-7/b"}, "erin"); });
+  EXPECT_NE(e.find("run 'P-7/b': its samples were dropped by retention at"), std::string::npos) << e;
+  EXPECT_NE(e.find("no analysis of it kept its FRF"), std::string::npos) << e;
+  EXPECT_EQ(h.put_reference("P-7", {"P-7/c", "P-7/a"}, "erin"), 1);
+}
+
+TEST(RetentionSweep, MonitoringSnapshotsOlderThanTheirDaysInBatches) {
+  auto h = Historian::open(db_path());
+  const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  std::vector<MonitoringSnapshot> snaps;
+  for (int i = 0; i < 50; ++i) {  // one every hour for 50 hours back
+    MonitoringSnapshot s;
+    s.pump_id = "P-7";
+    s.time_ns = now_ns - static_cast<std::int64_t>(i) * 3600'000'000'000;
+    s.speed_rpm = 3000;
+    snaps.push_back(s);
+  }
+  h.put_monitoring(snaps);
+  RetentionPolicy p = samples_for_days(30);
+  p.monitoring_days = 1.0 - 1e-6;  // the 24 of the last 24 hours stay (0 h .. 23 h)
+  SweepOptions opt;
+  opt.max_monitoring_rows_per_transaction = 7;
+  opt.dry_run = true;
+  EXPECT_EQ(h.sweep_retention(p, opt).monitoring_rows, 26);
+  EXPECT_EQ(h.list_monitoring("P-7", 0, 100).size(), 50u) << "a dry run changes nothing";
+  opt.dry_run = false;
+  const auto r = h.sweep_retention(p, opt);
+  EXPECT_EQ(r.monitoring_rows, 26);
+  EXPECT_EQ(r.transactions, 4);  // 7 + 7 + 7 + 5
+  const auto left = h.list_monitoring("P-7", 0, 100);
+  ASSERT_EQ(left.size(), 24u);
+  EXPECT_EQ(left.front().time_ns, now_ns - 23 * 3600'000'000'000);
+}
+
+TEST(RetentionSweep, ADryRunReportsWhatTheSweepThenDrops) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  for (int i = 0; i < 4; ++i) {
+    store_run(h, "P-7/r" + std::to_string(i), "P-7", 1000, static_cast<unsigned>(i), 1000, true);
+    received_days_ago(path, "P-7/r" + std::to_string(i), 50.0 - 10 * i);  // 50, 40, 30, 20 days
+  }
+  RetentionPolicy p = samples_for_days(25);
+  p.frf_days = 45;
+  SweepOptions dry;
+  dry.dry_run = true;
+  const auto plan = h.sweep_retention(p, dry);
+  EXPECT_EQ(dropped_ids(plan), (std::vector<std::string>{"P-7/r0", "P-7/r1", "P-7/r2"}));
+  EXPECT_EQ(dropped_ids(plan, "frf"), std::vector<std::string>{"P-7/r0"});
+  EXPECT_EQ(plan.transactions, 0);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(samples_state(h, "P-7/r" + std::to_string(i)), "held");
+  // A dry run reads on a read-only connection too.
+  auto reader = Historian::open(path, Historian::Mode::read);
+  const auto read_plan = reader.sweep_retention(p, dry);
+  EXPECT_EQ(dropped_ids(read_plan), dropped_ids(plan));
+  EXPECT_EQ(read_plan.samples_bytes, plan.samples_bytes);
+
+  const auto done = h.sweep_retention(p);
+  EXPECT_EQ(dropped_ids(done), dropped_ids(plan));
+  EXPECT_EQ(dropped_ids(done, "frf"), dropped_ids(plan, "frf"));
+  EXPECT_EQ(done.samples_bytes, plan.samples_bytes);
+}
+
+TEST(RetentionSweep, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinishedByTheNextSweep) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  const auto run = store_run(h, "P-7/big", "P-7", 10000, 4, 1000);  // 10 chunks of 8000 bytes
+  received_days_ago(path, run.run_id, 100);
+  SweepOptions opt;
+  opt.max_bytes_per_transaction = 20000;  // two chunks a transaction
+  int commits = 0;
+  opt.after_commit = [&] { ++commits; };
+  opt.stop = [&] { return commits >= 2; };  // after the second transaction
+  auto r = h.sweep_retention(samples_for_days(30), opt);
+  EXPECT_TRUE(r.stopped);
+  EXPECT_EQ(r.samples_bytes, 32000);
+  EXPECT_EQ(chunks_held(path, run.run_id), 6);
+  // Half way it already reads as dropped: no reader sees a part of it.
+  EXPECT_EQ(samples_state(h, run.run_id), "dropped");
+  EXPECT_NE(error_of([&] { h.read_samples(run.run_id); }).find("dropped by retention"), std::string::npos);
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropping'"), 1);
+
+  opt.stop = nullptr;
+  r = h.sweep_retention(samples_for_days(30), opt);
+  ASSERT_EQ(r.runs.size(), 1u);
+  EXPECT_EQ(r.runs[0].reason, "interrupted");
+  EXPECT_EQ(r.runs[0].bytes, 48000);
+  EXPECT_EQ(r.transactions, 3);
+  EXPECT_LE(r.longest_transaction_s, r.transactions_s);
+  EXPECT_EQ(chunks_held(path, run.run_id), 0);
+  EXPECT_EQ(h.find_run(run.run_id)->samples_dropped_bytes, 80000);
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropped'"), 1);
+}
+
+TEST(RetentionSweep, TheLeaseKeepsASecondSweepOutUntilItIsReleasedOrExpires) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  store_run(h, "P-7/a", "P-7", 500, 1);
+  received_days_ago(path, "P-7/a", 100);
+  auto other = Historian::open(path);
+  // Another sweep holds the lease (a sweep of another process, running).
+  raw_exec(path, ("INSERT INTO retention_lease VALUES ('sweep', 'other@host', '" + utc_days_ago(-1.0 / 24) + "')").c_str());
+  auto r = h.sweep_retention(samples_for_days(30));
+  EXPECT_NE(r.skipped.find("another sweep holds the retention lease: other@host until"), std::string::npos) << r.skipped;
+  EXPECT_EQ(samples_state(h, "P-7/a"), "held");
+  // Expired (the other died): taken over.
+  raw_exec(path, ("UPDATE retention_lease SET expires_at = '" + utc_days_ago(1.0 / 24) + "'").c_str());
+  r = h.sweep_retention(samples_for_days(30));
+  EXPECT_TRUE(r.skipped.empty());
+  EXPECT_EQ(r.samples_runs, 1);
+  // Released at the end: the next sweep of anyone runs.
+  EXPECT_TRUE(other.sweep_retention(samples_for_days(30)).skipped.empty());
+}
+
+TEST(RetentionSweep, TwoConnectionsSweepingAtOnceDropEachRunOnce) {
+  const auto path = db_path();
+  {
+    auto h = Historian::open(path);
+    for (int i = 0; i < 20; ++i) {
+      store_run(h, "P-7/r" + std::to_string(i), "P-7", 500, static_cast<unsigned>(i));
+      received_days_ago(path, "P-7/r" + std::to_string(i), 100);
+    }
+  }
+  std::vector<SweepReport> reports(2);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&, t] {
+      auto h = Historian::open(path);
+      SweepOptions opt;
+      opt.yield_between_transactions = false;
+      reports[t] = h.sweep_retention(samples_for_days(30), opt);
+    });
+  for (auto& t : threads) t.join();
+  std::set<std::string> seen;
+  for (const auto& r : reports)
+    for (const auto& id : dropped_ids(r)) EXPECT_TRUE(seen.insert(id).second) << id << " dropped twice";
+  EXPECT_EQ(seen.size(), 20u) << reports[0].skipped << " / " << reports[1].skipped;
+  EXPECT_EQ(reports[0].samples_bytes + reports[1].samples_bytes, 20 * 4000);
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sample_chunks"), 0);
+}
+
+TEST(RetentionSweep, AStoredPolicyThatDoesNotReadDropsNothingOfItsPump) {
+  const auto path = db_path();
+  auto h = Historian::open(path);
+  store_run(h, "P-7/a", "P-7", 500, 1);
+  received_days_ago(path, "P-7/a", 100);
+  raw_exec(path, "INSERT INTO retention_policies VALUES ('P-7', 1, '{\"samples_days\": \"soon\"}', '2026-01-01T00:00:00.000Z', 'x')");
+  const auto r = h.sweep_retention(samples_for_days(30));
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].find("samples_days"), std::string::npos) << r.errors[0];
+  EXPECT_EQ(samples_state(h, "P-7/a"), "held");
+}
+
+}  // namespace
+}  // namespace ambdiag::storage
