@@ -1,5 +1,6 @@
 // `ambdiag db import|export|list`: run recordings in and out of the historian
-// (storage/recording_io.h).
+// (storage/recording_io.h); `ambdiag db retention`: one retention sweep
+// (storage/retention.h).
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -7,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/server/retention_service.h"
 #include "ambdiag/storage/historian.h"
 #include "ambdiag/storage/recording_io.h"
 #include "args.h"
@@ -68,7 +70,8 @@ int run_db_list(const std::vector<std::string>& argv) {
                       {"started_at", r.started_at},
                       {"status", storage::to_string(r.status)},
                       {"status_reason", r.status_reason},
-                      {"frames", r.received_frames}});
+                      {"frames", r.received_frames},
+                      {"samples", r.samples_dropped_at ? "dropped" : "held"}});
     }
     pumps.push_back({{"pump_id", p.pump_id}, {"runs", runs}});
   }
@@ -79,9 +82,44 @@ int run_db_list(const std::vector<std::string>& argv) {
   for (const auto& p : pumps) {
     std::printf("%s\n", p["pump_id"].get<std::string>().c_str());
     for (const auto& r : p["runs"])
-      std::printf("  %-40s %-10s %lld frames %s\n", r["run_id"].get<std::string>().c_str(),
+      std::printf("  %-40s %-10s %lld frames%s %s\n", r["run_id"].get<std::string>().c_str(),
                   r["status"].get<std::string>().c_str(), r["frames"].get<long long>(),
+                  r["samples"] == "dropped" ? " (samples dropped by retention)" : "",
                   r["status_reason"].get<std::string>().c_str());
+  }
+  return kExitOk;
+}
+
+// One sweep with the server's defaults (--retention FILE, else the built-in
+// ones) and each pump's own policy from the file; beside a running server
+// (its own write connection; the lease keeps two sweeps apart).
+int run_db_retention(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--db", "--retention"}, {"--dry-run", "--json"});
+  args.expect_positional(0, "nothing");
+  const std::string db = args.required("--db", "FILE");
+  const auto defaults = args.option("--retention") ? server::retention_defaults_from_file(*args.option("--retention"))
+                                                   : storage::RetentionPolicy{};
+  storage::SweepOptions opt;
+  opt.dry_run = args.flag("--dry-run");
+  auto h = storage::Historian::open(db, opt.dry_run ? storage::Historian::Mode::read : storage::Historian::Mode::write);
+  const storage::SweepReport r = h.sweep_retention(defaults, opt);
+  if (args.flag("--json")) {
+    std::cout << storage::to_json(r, true).dump(2) << "\n";
+  } else if (r.skipped.empty()) {
+    for (const auto& run : r.runs)
+      std::printf("%-8s %-40s %10.3f MB  %s\n", run.what.c_str(), run.run_id.c_str(), static_cast<double>(run.bytes) / 1e6,
+                  run.reason.c_str());
+    std::printf("%s the samples of %lld runs (%.1f MB), the FRFs of %lld runs (%.1f MB), %lld monitoring snapshots; "
+                "%.2f s, longest transaction %.3f s\n",
+                opt.dry_run ? "would drop" : "dropped", static_cast<long long>(r.samples_runs),
+                static_cast<double>(r.samples_bytes) / 1e6, static_cast<long long>(r.frf_runs),
+                static_cast<double>(r.frf_bytes) / 1e6, static_cast<long long>(r.monitoring_rows), r.seconds,
+                r.longest_transaction_s);
+  }
+  for (const auto& e : r.errors) std::fprintf(stderr, "ambdiag db retention: %s\n", e.c_str());
+  if (!r.skipped.empty()) {
+    std::fprintf(stderr, "ambdiag db retention: %s; nothing dropped\n", r.skipped.c_str());
+    return kExitBadInput;
   }
   return kExitOk;
 }
@@ -109,6 +147,18 @@ std::vector<Command> db_commands() {
        "pumps and runs held in the historian",
        "usage: ambdiag db list --db FILE [--json]\n",
        run_db_list},
+      {{"db", "retention"},
+       "one retention sweep: drop what the pumps' retention policies no longer keep",
+       "usage: ambdiag db retention --db FILE [--retention FILE] [--dry-run] [--json]\n\n"
+       "Drops the raw samples, the analyses' files (frf.csv, figures) and the monitoring snapshots that\n"
+       "each pump's policy (PUT /api/v1/pumps/{id}/retention) over the defaults no longer keeps, and prints\n"
+       "what it dropped, run by run. The defaults: --retention FILE (as `ambdiag serve --retention`), else\n"
+       "the built-in ones (samples 90 days, FRFs 730 days, monitoring kept). Reference runs and runs an\n"
+       "open alarm or a queued or running job names are never dropped. Works beside a running server.\n"
+       "  --dry-run  print what would be dropped, change nothing\n"
+       "  --json     {\"samples\": {\"runs\", \"bytes\"}, \"frf\": {...}, \"monitoring_rows\", \"runs\": [...], ...}\n"
+       "Exit 3 when another sweep holds the retention lease (nothing dropped).\n",
+       run_db_retention},
   };
 }
 

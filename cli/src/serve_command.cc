@@ -21,6 +21,7 @@
 #include "ambdiag/server/ingest.h"
 #include "ambdiag/server/metrics.h"
 #include "ambdiag/server/rest_server.h"
+#include "ambdiag/server/retention_service.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
@@ -62,7 +63,7 @@ int run_serve(const std::vector<std::string>& argv) {
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
                    "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
-                   "--web-dir"},
+                   "--web-dir", "--retention", "--retention-interval"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
@@ -108,6 +109,15 @@ int run_serve(const std::vector<std::string>& argv) {
   const double burst = args.number("--rate-limit-burst").value_or(std::max(1.0, 2 * rate));
   if (!(burst >= 1 && burst <= 1e7)) throw UsageError("--rate-limit-burst: must be in 1..10000000");
   if (const auto file = args.option("--alarm-defaults")) aopt.alarm_defaults = read_alarm_defaults(*file);
+  server::RetentionOptions ropt;
+  ropt.db_path = *db;
+  ropt.verbose = opt.verbose;
+  // Checked before anything listens: a bad file names the key (exit 3).
+  if (const auto file = args.option("--retention")) ropt.defaults = server::retention_defaults_from_file(*file);
+  const double interval_s = args.number("--retention-interval").value_or(600);
+  if (!(interval_s == 0 || (interval_s >= 0.1 && interval_s <= 86400 * 7)))
+    throw UsageError("--retention-interval: must be seconds in 0.1..604800, or 0 for no periodic sweep");
+  ropt.interval = std::chrono::milliseconds(static_cast<long>(1000 * interval_s));
 
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
@@ -126,6 +136,8 @@ int run_serve(const std::vector<std::string>& argv) {
   opt.events = &events;
   aopt.events = &events;
   aopt.metrics = &metrics;
+  ropt.metrics = &metrics;
+  server::RetentionService retention(ropt);
   std::optional<server::AnalysisService> analysis;
   if (aopt.workers > 0) {
     analysis.emplace(aopt);
@@ -137,6 +149,7 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
   rest_opt.analysis = analysis ? &*analysis : nullptr;
+  rest_opt.retention = &retention;
   rest_opt.anonymous_read = args.flag("--anonymous-read");
   rest_opt.tls_cert_path = args.option("--tls-cert").value_or("");
   rest_opt.tls_key_path = args.option("--tls-key").value_or("");
@@ -151,10 +164,11 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
-  rest_opt.health_extra = [&ingest, &historian, &analysis] {
+  rest_opt.health_extra = [&ingest, &historian, &analysis, &retention] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"ingest", ingest.health()},
                           {"jobs", analysis ? analysis->counters() : nlohmann::json(nullptr)},
+                          {"retention", retention.last_sweep()},
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
                                            {"pages_copied", ck.pages_copied},
@@ -172,6 +186,7 @@ int run_serve(const std::vector<std::string>& argv) {
     std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
                  bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
+  retention.start();
   std::thread ingest_thread([&] { ingest.run(g_stop); });
 
   // Progress on stderr every 5 s while something changes.
@@ -194,6 +209,7 @@ int run_serve(const std::vector<std::string>& argv) {
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
   rest.stop();
+  retention.stop();
   if (analysis) analysis->stop();
   const auto& c = ingest.counters();
   const auto h = ingest.health();
@@ -220,6 +236,7 @@ std::vector<Command> serve_commands() {
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
+           "                     [--retention FILE] [--retention-interval S]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -238,6 +255,11 @@ std::vector<Command> serve_commands() {
            "Each analysed run is evaluated against the pump's alarm rules; --alarm-defaults FILE: the server's\n"
            "default rules (JSON {\"rules\": [...], \"plant_state\"?}, each rule over the built-in one of its id;\n"
            "docs/service.md \"Alarms\"), checked at the start.\n"
+           "--retention FILE: the server's default retention policy (JSON {\"samples_days\"?, \"samples_bytes\"?,\n"
+           "  \"frf_days\"?, \"monitoring_days\"?}, each over the built-in one: samples 90 days, FRFs 730 days,\n"
+           "  monitoring kept; null: kept for ever), checked at the start; each pump's own policy over it:\n"
+           "  PUT /api/v1/pumps/{id}/retention. The sweep runs 2 s after the start and every S seconds\n"
+           "  (--retention-interval, default 600; 0: never, `ambdiag db retention` sweeps). docs/storage.md.\n"
            "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
            "  ../share/ambdiag/web next to this binary; web/README.md).\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"

@@ -40,6 +40,16 @@ nlohmann::json run_json(const storage::RunInfo& r, bool with_header) {
     if (r.checksum_kind) j["checksum_kind"] = to_string(*r.checksum_kind);
   }
   if (r.ended_at) j["ended_at"] = *r.ended_at;
+  // Retention (docs/storage.md): what is still held of the run.
+  j["samples"] = r.samples_dropped_at ? "dropped" : "held";
+  if (r.samples_dropped_at) {
+    j["samples_dropped_at"] = *r.samples_dropped_at;
+    j["samples_dropped_bytes"] = r.samples_dropped_bytes;
+  }
+  if (r.frf_dropped_at) {
+    j["frf_dropped_at"] = *r.frf_dropped_at;
+    j["frf_dropped_bytes"] = r.frf_dropped_bytes;
+  }
   if (with_header) j["header"] = nlohmann::json::parse(r.header_json);
   return j;
 }

@@ -32,6 +32,8 @@ void send_exception(httplib::Response& res, std::exception_ptr ep) {
     send_error(res, 400, e.what());
   } catch (const NotFoundError& e) {
     send_error(res, 404, e.what());
+  } catch (const GoneError& e) {
+    send_error(res, 410, e.what());
   } catch (const ConflictError& e) {
     send_error(res, 409, e.what());
   } catch (const std::exception& e) {
@@ -98,6 +100,7 @@ struct RestServer::Impl {
     detail::add_grafana_routes(routes);
     detail::add_service_routes(routes, service);
     detail::add_web_routes(routes);
+    detail::add_retention_routes(routes);
     register_metrics();
   }
 
@@ -167,7 +170,7 @@ struct RestServer::Impl {
       if (!caller) return;  // 401 or 403 sent
       if (!rate_ok(*caller, req, res)) return;
     }
-    if (route.method != "GET" && !route.read_only && !opt.analysis)
+    if (route.method != "GET" && !route.read_only && !route.writes_elsewhere && !opt.analysis)
       return send_error(res, 503, "this server runs without the analysis service: " + req.method + " " + req.path + " is not served");
     detail::RouteContext ctx{pool, opt, caller.value_or(detail::Caller{}), req, res};
     route.handler(ctx, found.params);

@@ -49,6 +49,38 @@ TEST(CliDb, ImportThenExportGivesTheRecordingBackBitIdentical) {
   EXPECT_EQ(list["pumps"][0]["runs"][0]["run_id"], run_id);
 }
 
+TEST(CliDb, RetentionSweepsOncePrintsWhatItDroppedAndADryRunChangesNothing) {
+  const fs::path dir = testing::scratch_dir();
+  const std::string db = "--db " + (dir / "h.db").string();
+  std::string out;
+  ASSERT_EQ(ambdiag_cli(dir, "db import " + testing::data_file("reference_pump/run_ref_1").string() + " " + db + " --json", &out), 0);
+  const std::string run_id = nlohmann::json::parse(out)["run_id"];
+  // The built-in defaults keep a run received now.
+  ASSERT_EQ(ambdiag_cli(dir, "db retention " + db + " --json", &out), 0);
+  EXPECT_EQ(nlohmann::json::parse(out)["samples"]["runs"], 0);
+  write_file_atomic((dir / "now.json").string(), R"({"samples_days": 0})");
+  const std::string policy = " --retention " + (dir / "now.json").string();
+  ASSERT_EQ(ambdiag_cli(dir, "db retention " + db + policy + " --dry-run --json", &out), 0);
+  auto j = nlohmann::json::parse(out);
+  EXPECT_TRUE(j["dry_run"].get<bool>());
+  ASSERT_EQ(j["runs"].size(), 1u);
+  EXPECT_EQ(j["runs"][0]["run_id"], run_id);
+  EXPECT_EQ(j["runs"][0]["reason"], "age");
+  EXPECT_EQ(ambdiag_cli(dir, "db export '" + run_id + "' " + db + " -o " + (dir / "a").string()), 0) << "the dry run changed nothing";
+  ASSERT_EQ(ambdiag_cli(dir, "db retention " + db + policy, &out), 0);
+  EXPECT_NE(out.find("dropped the samples of 1 runs (6.6 MB)"), std::string::npos) << out;
+  EXPECT_NE(out.find(run_id), std::string::npos) << out;
+  EXPECT_EQ(ambdiag_cli(dir, "db export '" + run_id + "' " + db + " -o " + (dir / "b").string()), 3);
+  EXPECT_NE(read_file_bytes((dir / "stderr.txt").string()).find("dropped by retention"), std::string::npos);
+  ASSERT_EQ(ambdiag_cli(dir, "db list " + db + " --json", &out), 0);
+  EXPECT_EQ(nlohmann::json::parse(out)["pumps"][0]["runs"][0]["samples"], "dropped") << "still listed";
+  // A bad policy file names the key.
+  write_file_atomic((dir / "bad.json").string(), R"({"frf_days": "long"})");
+  EXPECT_EQ(ambdiag_cli(dir, "db retention " + db + " --retention " + (dir / "bad.json").string()), 3);
+  EXPECT_NE(read_file_bytes((dir / "stderr.txt").string()).find("frf_days"), std::string::npos);
+  EXPECT_EQ(ambdiag_cli(dir, "db retention " + db + " --dry-run --bogus"), 2);
+}
+
 TEST(CliDb, BadInputExitsThreeAndUsageErrorsTwo) {
   const fs::path dir = testing::scratch_dir();
   const std::string db = "--db " + (dir / "h.db").string();

@@ -38,8 +38,7 @@ inline std::int64_t file_bytes(const std::string& path) { return static_cast<std
 // Streams the runs pump after pump, as the server's ingest commits them
 // (a writer with background checkpoints), sweeping on a connection of its
 // own every `sweep_every` runs of each pump.
-inline SteadyStreamFigures stream_with_retention(const SteadyStream& s) {
-  const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
+inline SteadyStreamFigures stream_with_retention(const SteadyStream& s, const std::string& path) {
   auto writer = Historian::open(path);
   writer.checkpoint_in_background();
   auto sweeper = Historian::open(path);
@@ -71,6 +70,15 @@ inline SteadyStreamFigures stream_with_retention(const SteadyStream& s) {
   f.freelist_at_end = raw_query_int(path, "PRAGMA freelist_count");
   for (int p = 0; p < s.pumps; ++p)
     EXPECT_LE(sweeper.retention_usage("P-" + std::to_string(p)).samples_bytes_held, *policy.samples_bytes + s.sweep_every * run_bytes);
+  return f;
+}
+
+// The same in a scratch file, removed once the figures are taken (hundreds
+// of MB in the slow version).
+inline SteadyStreamFigures stream_with_retention(const SteadyStream& s) {
+  const std::string path = (ambdiag::testing::scratch_dir() / "h.db").string();
+  const SteadyStreamFigures f = stream_with_retention(s, path);
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path + suffix);
   return f;
 }
 

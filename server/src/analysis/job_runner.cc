@@ -74,19 +74,28 @@ double thread_cpu_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-// The stored run as a recording: its run.json and its samples.
-RunRecording load_run(Historian& h, const std::string& run_id) {
-  const auto info = h.find_run(run_id);
-  if (!info) throw InputError("run '" + run_id + "' is not in the historian");
-  if (info->status != storage::RunStatus::complete)
-    throw InputError("run '" + run_id + "' is " + storage::to_string(info->status) +
-                     (info->status_reason.empty() ? "" : " (" + info->status_reason + ")"));
-  RunRecording run;
+// A complete stored run's header as a recording without samples.
+RunRecording load_run_header(const storage::RunInfo& info) {
+  if (info.status != storage::RunStatus::complete)
+    throw InputError("run '" + info.run_id + "' is " + storage::to_string(info.status) +
+                     (info.status_reason.empty() ? "" : " (" + info.status_reason + ")"));
   try {
-    run = run_from_json(json::parse(info->header_json));
+    return run_from_json(json::parse(info.header_json));
   } catch (const json::exception& e) {
-    throw InputError("run '" + run_id + "': run.json: " + e.what());
+    throw InputError("run '" + info.run_id + "': run.json: " + e.what());
   }
+}
+
+storage::RunInfo find_run(Historian& h, const std::string& run_id) {
+  auto info = h.find_run(run_id);
+  if (!info) throw InputError("run '" + run_id + "' is not in the historian");
+  return std::move(*info);
+}
+
+// The stored run as a recording: its run.json and its samples (InputError
+// naming retention when they were dropped).
+RunRecording load_run(Historian& h, const std::string& run_id) {
+  RunRecording run = load_run_header(find_run(h, run_id));
   const std::string bytes = h.read_samples(run_id);
   if (bytes.size() % sizeof(float) != 0) throw InputError("run '" + run_id + "': samples are not whole float32 values");
   run.samples.resize(bytes.size() / sizeof(float));
@@ -99,16 +108,47 @@ RunRecording load_run(Historian& h, const std::string& run_id) {
   return run;
 }
 
-// A run's FRF: the one its analysis kept, else estimated now.
-FrfData run_frf(Historian& h, const std::string& run_id) {
+// The FRF the run's newest done analysis kept, with that job's id.
+std::optional<std::pair<FrfData, std::int64_t>> kept_frf(Historian& h, const std::string& run_id) {
   storage::JobFilter f;
   f.run_id = run_id;
   f.kind = "analysis";
   f.status = storage::JobStatus::done;
   f.limit = 1;
   for (const auto& j : h.list_jobs(f))
-    if (auto a = h.find_artifact(j.job_id, "frf.csv")) return parse_frf_csv(a->data, "frf.csv of job " + std::to_string(j.job_id));
+    if (auto a = h.find_artifact(j.job_id, "frf.csv"))
+      return std::pair{parse_frf_csv(a->data, "frf.csv of job " + std::to_string(j.job_id)), j.job_id};
+  return std::nullopt;
+}
+
+// Neither samples nor an FRF: the run cannot be analysed again.
+[[noreturn]] void throw_nothing_left(const storage::RunInfo& info) {
+  throw InputError("run '" + info.run_id + "': its samples were dropped by retention at " +
+                   info.samples_dropped_at.value_or("?") +
+                   (info.frf_dropped_at ? " and its FRF at " + *info.frf_dropped_at
+                                        : std::string(" and no analysis of it kept an FRF")) +
+                   ": it cannot be analysed again (its earlier results are kept)");
+}
+
+// A run's FRF: the one its analysis kept, else estimated now.
+FrfData run_frf(Historian& h, const std::string& run_id) {
+  if (auto kept = kept_frf(h, run_id)) return std::move(kept->first);
+  const auto info = find_run(h, run_id);
+  if (info.samples_dropped_at) throw_nothing_left(info);
   return estimate_run_frf(load_run(h, run_id), nullptr);
+}
+
+// An analysis of a run whose samples retention dropped: from the FRF an
+// earlier analysis kept.
+JobOutput analyse_kept_frf(Historian& h, const storage::RunInfo& info, const PlantModel& plant,
+                           const OperatingReference* ref, double alpha, const ProgressFn& progress) {
+  auto kept = kept_frf(h, info.run_id);
+  if (!kept) throw_nothing_left(info);
+  const json summary = {{"source", "frf.csv of analysis job " + std::to_string(kept->second)},
+                        {"samples_dropped_at", *info.samples_dropped_at},
+                        {"lines", kept->first.freq_hz.size()},
+                        {"entries", kept->first.entries.size()}};
+  return analyse_frf(plant, load_run_header(info), std::move(kept->first), summary, ref, alpha, progress);
 }
 
 PlantModel job_plant(Historian& h, const storage::Job& job) {
@@ -224,8 +264,9 @@ void JobRunner::execute(const storage::Job& job) {
         if (!job.depends_on) throw InputError("no reference job for reference version " + std::to_string(job.key.reference_version));
         ref = &reference_of(*job.depends_on);
       }
-      const RunRecording run = load_run(h_, job.key.run_id);
-      out = analyse_run(plant, run, ref, opt_.alpha, progress);
+      const auto info = find_run(h_, job.key.run_id);
+      out = info.samples_dropped_at ? analyse_kept_frf(h_, info, plant, ref, opt_.alpha, progress)
+                                    : analyse_run(plant, load_run(h_, job.key.run_id), ref, opt_.alpha, progress);
       const auto& d = out.result["detection"];
       summary = d.is_null() ? "no reference" : (d["detected"].get<bool>() ? "CHANGE DETECTED" : "no change");
       if (!out.result["diagnosis"].is_null() && !out.result["diagnosis"]["faults"].empty())

@@ -16,6 +16,7 @@ std::string model_frf_csv(storage::Historian& h, const std::string& run_id) {
   if (!job || job->status != storage::JobStatus::done)
     throw NotFoundError("run '" + run_id + "' has no finished analysis yet");
   const auto measured = h.find_artifact(job->job_id, "frf.csv");
+  if (!measured && run->frf_dropped_at) throw GoneError(dropped_by_retention(*run, false));
   const auto model = h.find_model(run->pump_id, job->key.model_version);
   if (!measured || !model)
     throw NotFoundError("the analysis of run '" + run_id + "' has no frf.csv or no model");

@@ -66,21 +66,34 @@ FrfData estimate_run_frf(const RunRecording& run, json* summary) {
   return std::move(est.frf);
 }
 
-JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const OperatingReference* reference,
-                      double alpha, const ProgressFn& progress) {
-  JobOutput out;
-  json& r = out.result;
-  const double speed_rpm = run.speed_rpm > 0 ? run.speed_rpm : plant.speed_rpm;
-  r["speed_rpm"] = speed_rpm;
+namespace {
+
+void check_channels(const PlantModel& plant, const RunRecording& run) {
   try {
     run.validate_against(plant);
   } catch (const InputError& e) {
     rethrow_with_context(e, "run " + run.run_id + " against the pump's model");
   }
-  report(progress, 0.02);
+}
 
+}  // namespace
+
+JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const OperatingReference* reference,
+                      double alpha, const ProgressFn& progress) {
+  check_channels(plant, run);  // before the estimate's cost
+  report(progress, 0.02);
   json frf_summary;
   FrfData frf = estimate_run_frf(run, &frf_summary);
+  return analyse_frf(plant, run, std::move(frf), std::move(frf_summary), reference, alpha, progress);
+}
+
+JobOutput analyse_frf(const PlantModel& plant, const RunRecording& run, FrfData frf, json frf_summary,
+                      const OperatingReference* reference, double alpha, const ProgressFn& progress) {
+  JobOutput out;
+  json& r = out.result;
+  const double speed_rpm = run.speed_rpm > 0 ? run.speed_rpm : plant.speed_rpm;
+  r["speed_rpm"] = speed_rpm;
+  check_channels(plant, run);
   if (!frf.speed_rpm) frf.speed_rpm = speed_rpm;
   r["frf"] = frf_summary;
   out.artifacts.push_back({"frf.csv", "text/csv", format_frf_csv(frf)});

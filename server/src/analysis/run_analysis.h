@@ -42,6 +42,11 @@ FrfData estimate_run_frf(const RunRecording& run, nlohmann::json* summary);
 // diagnosis (null where not computed).
 JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const OperatingReference* reference,
                       double alpha, const ProgressFn& progress);
+// The same from an FRF already estimated (the frf.csv an earlier analysis
+// kept, when retention dropped the samples): `run` needs its header only
+// (run id, speed, channels); `frf_summary` becomes the result's "frf".
+JobOutput analyse_frf(const PlantModel& plant, const RunRecording& run, FrfData frf, nlohmann::json frf_summary,
+                      const OperatingReference* reference, double alpha, const ProgressFn& progress);
 
 // A reference from the FRFs of its runs ("reference.json").
 JobOutput learn_reference(const PlantModel& plant, const std::vector<FrfData>& frfs,

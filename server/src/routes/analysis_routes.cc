@@ -99,6 +99,7 @@ void get_run_file(RouteContext& c, const std::string& run_id, const std::string&
   if (!job || job->status != storage::JobStatus::done)
     return send_error(c.res, 404, "run '" + run_id + "' has no finished analysis yet (GET " + run_url(run_id) + "/analysis)");
   const auto a = h->find_artifact(job->job_id, name);
+  if (!a && run->frf_dropped_at) return send_error(c.res, 410, dropped_by_retention(*run, false));
   if (!a) return send_error(c.res, 404, "the analysis of run '" + run_id + "' has no " + name);
   send_artifact(c.res, *a);
 }
@@ -190,7 +191,8 @@ void add_analysis_routes(RouteTable& t) {
   for (const char* file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg"})
     t.add({"GET", std::string("/api/v1/runs/{run_id*}/") + file, Role::viewer, std::string("the analysis' ") + file,
            [file = std::string(file)](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
-           file == std::string("frf.csv") ? "text/csv" : "image/svg+xml"});
+           file == std::string("frf.csv") ? "text/csv" : "image/svg+xml"})
+        .errors = {410};
   t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)})
       .status = 202;
   t.add({"GET", "/api/v1/jobs", Role::viewer, "jobs, newest first", [](RouteContext& c, const PathParams&) { get_jobs(c); },

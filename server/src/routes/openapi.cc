@@ -21,6 +21,7 @@ constexpr ErrorResponse kErrors[] = {
     {401, "Unauthorized", "no token, or an unknown or revoked one"},
     {403, "Forbidden", "the token's role is too low: the message names the role needed"},
     {404, "NotFound", "no such resource (unknown pump, run, job, alarm or path)"},
+    {410, "Gone", "the data was dropped by the pump's retention policy: the message names the run and when"},
     {409, "Conflict", "the state does not allow the request"},
     {413, "PayloadTooLarge", "the body is larger than the server accepts (8 MiB by default)"},
     {429, "TooManyRequests",
@@ -147,6 +148,7 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
     errors.insert(errors.end(), {409, 413, 503});
   else if (r.token_in_query)
     errors.push_back(503);
+  errors.insert(errors.end(), r.errors.begin(), r.errors.end());
   for (const int e : errors) responses[std::to_string(e)] = error_ref(e);
   op["responses"] = responses;
 

@@ -3,6 +3,7 @@
 #include <limits>
 
 #include "ambdiag/storage/historian.h"
+#include "analysis/views.h"
 #include "rest_json.h"
 #include "routes/route_context.h"
 
@@ -69,6 +70,7 @@ void samples(RouteContext& c, const std::string& run_id) {
   d->snap.emplace(d->lease->snapshot());
   const auto r = d->lease->find_run(run_id);
   if (!r) return send_error(c.res, 404, "no run '" + run_id + "'");
+  if (r->samples_dropped_at) return send_error(c.res, 410, dropped_by_retention(*r, true));
   c.res.status = 200;
   c.res.set_header("X-Run-Status", storage::to_string(r->status));
   // No chunk yet (a run just begun): an empty body with Content-Length 0.
@@ -119,7 +121,8 @@ void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point starte
   t.add({"GET", "/api/v1/runs/{run_id*}", Role::viewer, "a run: status, header, counts",
          [](RouteContext& c, const PathParams& p) { run(c, p.at("run_id")); }});
   t.add({"GET", "/api/v1/runs/{run_id*}/samples.f32", Role::viewer, "the run's samples exactly as a recording's samples.f32",
-         [](RouteContext& c, const PathParams& p) { samples(c, p.at("run_id")); }, {}, "application/octet-stream"});
+         [](RouteContext& c, const PathParams& p) { samples(c, p.at("run_id")); }, {}, "application/octet-stream"})
+      .errors = {410};
 }
 
 }  // namespace ambdiag::server::detail

@@ -67,6 +67,8 @@ void add_web_routes(RouteTable& t);
 // openapi.json, metrics, events: service_routes.h (they need the server's state).
 // alarms, their journal, KPIs and each pump's alarm rules (alarm_routes.cc).
 void add_alarm_routes(RouteTable& t);
+// each pump's retention policy (retention_routes.cc).
+void add_retention_routes(RouteTable& t);
 // The server's default alarm rules (the analysis service's, else the
 // built-in ones), which a pump's own rules override (alarm_routes.cc).
 nlohmann::json alarm_defaults_of(const RouteContext& c);

@@ -49,6 +49,13 @@ struct Route {
   // A POST that only reads (Grafana's queries carry their request in a
   // body): served without the analysis service, like a GET.
   bool read_only = false;
+  // A write that goes to a service of its own (retention policies), not to
+  // the analysis service: served without it; the handler answers 503 when
+  // its own service is missing.
+  bool writes_elsewhere = false;
+  // Error statuses the route answers besides the usual ones (e.g. 410: the
+  // data was dropped by retention), for the OpenAPI document.
+  std::vector<int> errors = {};
   // Also answers the path with a trailing '/' (Grafana's connection test
   // asks for the data source's URL + "/"); other routes refuse it (404).
   bool trailing_slash = false;

@@ -154,7 +154,8 @@ void add_web_routes(RouteTable& t) {
          "the model's FRF on the run's grid and entries at its speed (the model version of its analysis)",
          [](RouteContext& c, const PathParams& p) { get_model_frf(c, p.at("run_id")); },
          {},
-         "text/csv"});
+         "text/csv"})
+      .errors = {410};
 }
 
 }  // namespace ambdiag::server::detail

@@ -62,6 +62,12 @@ class NotFoundError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// What the request names was dropped by the pump's retention policy: HTTP
+// 410 (docs/storage.md "Retention").
+class GoneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 class AnalysisService {
  public:

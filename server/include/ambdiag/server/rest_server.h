@@ -40,6 +40,7 @@ namespace ambdiag::server {
 class AnalysisService;
 class EventBus;
 class MetricsRegistry;
+class RetentionService;
 
 struct RestOptions {
   std::string db_path;          // must exist with the current schema (a writer creates it)
@@ -56,6 +57,9 @@ struct RestOptions {
   std::function<nlohmann::json()> health_extra;
   // Writes (models, references, explain) go to it; null: they answer 503.
   AnalysisService* analysis = nullptr;
+  // Retention policies: PUTs go to it and its defaults are shown; null:
+  // the built-in defaults are shown and a PUT answers 503.
+  RetentionService* retention = nullptr;
   // Requests without a token act as `viewer` (rest.md, --anonymous-read).
   bool anonymous_read = false;
   int proposed_reference_runs = 3;        // shown as the proposed reference of a pump without one
