@@ -10,6 +10,7 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
 #include "historian_fixture.h"
+#include "sqlite_raw.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -124,6 +125,18 @@ TEST(IngestLease, BadArgumentsAreRefusedNamingWhatIsWrong) {
   auto reader = Historian::open(h.path(), Historian::Mode::read);
   EXPECT_THROW(reader.join_ingest_group("g", "*", 3000), std::logic_error);
   EXPECT_EQ(reader.find_ingest_lease("g")->partitions, "*");
+}
+
+TEST(IngestLease, AVersion6FileIsMigratedAndKeepsItsRuns) {
+  const auto path = db_path();
+  Historian::open(path).begin_run(run_header_from_json(testing::run_json_text("R-6", 2)));
+  downgrade_schema(path, 6);
+  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sqlite_schema WHERE name = 'ingest_leases'"), 0);
+  EXPECT_THROW(Historian::open(path, Historian::Mode::read), InputError);  // readers do not migrate
+  auto h = Historian::open(path);
+  EXPECT_TRUE(h.find_run("R-6"));
+  EXPECT_EQ(h.join_ingest_group("g", "*", 3000).epoch, 0);
+  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());
 }
 
 // Many standbys that saw the same expired lease race to take it, each on
