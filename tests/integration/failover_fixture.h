@@ -25,10 +25,11 @@ struct FailoverFigures {
   double taken_over_s = -1;     // the standby's health says holder
   double first_block_s = -1;    // the standby's first commit holding a block (new or already stored)
   double runs_complete_s = -1;  // the last of the runs complete in the historian
+  double agents_done_s = -1;    // the last agent ended, its run's verdict received (sent once durable)
   void print(const std::string& what) const {
     std::printf("%s: taken over after %.2f s, first block committed by the new holder after %.2f s, every run "
-                "complete after %.2f s\n",
-                what.c_str(), taken_over_s, first_block_s, runs_complete_s);
+                "complete after %.2f s, every agent's verdict after %.2f s\n",
+                what.c_str(), taken_over_s, first_block_s, runs_complete_s, agents_done_s);
     std::fflush(stdout);
   }
 };
@@ -110,17 +111,18 @@ class FailoverTest : public StreamTest {
     return true;
   }
 
-  // After `fault` hit the holder at `t0`: when `standby` says holder, when
-  // it committed its first block, when every run is complete (polled every
-  // 20 ms; runs every 100 ms).
-  FailoverFigures measure(const Member& standby, const std::vector<fs::path>& runs, Clock::time_point t0,
+  // After a fault hit the holder at `t0`: when `standby` says holder, when
+  // it committed its first block, when every run is complete, when every
+  // agent has ended (polled every 20 ms; runs every 100 ms).
+  FailoverFigures measure(const Member& standby, const std::vector<fs::path>& runs,
+                          std::vector<std::unique_ptr<Process>>& agents, Clock::time_point t0,
                           std::chrono::milliseconds timeout) {
     FailoverFigures f;
     auto next_db_look = Clock::now();
     // Blocks it committed while it held the group before (the slow test
     // alternates the holder): it cannot commit again before it takes over.
     std::optional<int64_t> blocks_before;
-    while (since(t0) < std::chrono::duration<double>(timeout).count() && f.runs_complete_s < 0) {
+    while (since(t0) < std::chrono::duration<double>(timeout).count() && (f.runs_complete_s < 0 || f.agents_done_s < 0)) {
       const auto h = health(standby);
       if (h.contains("ingest_groups")) {
         if (f.taken_over_s < 0 && h["ingest_groups"][0].value("role", "") == "holder") f.taken_over_s = since(t0);
@@ -129,7 +131,9 @@ class FailoverTest : public StreamTest {
         if (!blocks_before) blocks_before = blocks;
         if (f.first_block_s < 0 && blocks > *blocks_before) f.first_block_s = since(t0);
       }
-      if (Clock::now() >= next_db_look) {
+      if (f.agents_done_s < 0 && std::none_of(agents.begin(), agents.end(), [](auto& a) { return a->running(); }))
+        f.agents_done_s = since(t0);
+      if (f.runs_complete_s < 0 && Clock::now() >= next_db_look) {
         next_db_look = Clock::now() + 100ms;
         if (all_complete(runs)) f.runs_complete_s = since(t0);
       }

@@ -19,7 +19,7 @@ TEST_F(FailoverTest, AKilledHolderIsTakenOverAndItsRunsCompleteOnceSampleForSamp
   a.process->signal(SIGKILL);
   const auto killed = Clock::now();
   EXPECT_EQ(a.process->wait(5s), -SIGKILL);
-  const auto f = measure(b, runs, killed, 60s);
+  const auto f = measure(b, runs, agents, killed, 60s);
   f.print("kill -9 of the holder, lease 1 s, 3 paced agents (6 s runs, killed after 1-2 s)");
   // The targets, with the default 3 s lease: taken over within 8 s,
   // the runs complete within 12 s. Here the lease is 1 s.
