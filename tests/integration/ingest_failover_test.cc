@@ -37,6 +37,7 @@ TEST_F(FailoverTest, AKilledHolderIsTakenOverAndItsRunsCompleteOnceSampleForSamp
   const auto in = health(b)["ingest"];
   EXPECT_GT(in.value("blocks_stored", 0), 0);  // the rest of the runs, after A's part
   EXPECT_EQ(in.value("runs_complete", 0), 3);
+  EXPECT_EQ(in.value("runs_incomplete", -1), 0);  // no verdict but complete, each once
   b.process->signal(SIGTERM);
   EXPECT_EQ(b.process->wait(20s), 0) << b.process->log();
   EXPECT_NE(b.process->log().find("ingest group 'default': released"), std::string::npos);
@@ -83,6 +84,7 @@ TEST_F(FailoverTest, APausedHolderIsTakenOverAndWhenWokenStoresAndAcknowledgesNo
   EXPECT_EQ(in_a.value("runs_incomplete", -1), 0);
   EXPECT_EQ(role(a), "standby");
   EXPECT_EQ(health(b)["ingest"].value("runs_complete", 0), 3);
+  EXPECT_EQ(health(b)["ingest"].value("runs_incomplete", -1), 0);
   for (auto* m : {&a, &b}) {
     m->process->signal(SIGTERM);
     EXPECT_EQ(m->process->wait(20s), 0) << m->process->log();
