@@ -22,9 +22,10 @@ std::string default_instance() {
   return std::string(host) + ":" + std::to_string(getpid());
 }
 
-std::string utc_now() {
-  return storage::utc_from_ns(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+std::string utc_now() {  // to the millisecond, as the lease row's times
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return storage::utc_from_ns(ms * 1'000'000);
 }
 
 // Sleeps `d` in slices, returning early once `flag` is set.
