@@ -44,6 +44,15 @@ void check_lease_ms(std::int64_t lease_ms, const std::string& ctx) {
   if (lease_ms < 1) throw InputError(ctx + ": lease_ms must be >= 1");
 }
 
+// The compare-and-set: runs the bound UPDATE and commits `tx` only if it
+// matched the one row (else `tx` rolls back, having changed nothing).
+bool set_if_matched(Historian::Impl& impl, Stmt& update, Transaction& tx) {
+  update.run();
+  if (impl.db.changes() != 1) return false;
+  tx.commit();
+  return true;
+}
+
 }  // namespace
 
 IngestLease Historian::join_ingest_group(const std::string& group, const std::string& partitions,
@@ -131,35 +140,21 @@ bool Historian::renew_ingest_lease(const std::string& group, const std::string& 
   check_lease_ms(lease_ms, "ingest group " + quoted(group));
   const auto t = lease_times(lease_ms);
   Transaction tx(impl_->db, Transaction::Kind::write);
-  impl_->stmt(
-          "UPDATE ingest_leases SET renewals = renewals + 1, lease_ms = ?, renewed_at = ?, expires_at = ? "
-          "WHERE ingest_group = ? AND holder = ? AND epoch = ?")
-      .bind(1, lease_ms)
-      .bind(2, t.now)
-      .bind(3, t.expires)
-      .bind(4, group)
-      .bind(5, holder)
-      .bind(6, epoch)
-      .run();
-  if (impl_->db.changes() != 1) return false;
-  tx.commit();
-  return true;
+  auto& renew = impl_->stmt(
+      "UPDATE ingest_leases SET renewals = renewals + 1, lease_ms = ?, renewed_at = ?, expires_at = ? "
+      "WHERE ingest_group = ? AND holder = ? AND epoch = ?");
+  renew.bind(1, lease_ms).bind(2, t.now).bind(3, t.expires).bind(4, group).bind(5, holder).bind(6, epoch);
+  return set_if_matched(*impl_, renew, tx);
 }
 
 bool Historian::release_ingest_lease(const std::string& group, const std::string& holder, std::int64_t epoch) {
   impl_->require_writer("release_ingest_lease");
   Transaction tx(impl_->db, Transaction::Kind::write);
-  impl_->stmt(
-          "UPDATE ingest_leases SET holder = '', renewals = renewals + 1, expires_at = ? "
-          "WHERE ingest_group = ? AND holder = ? AND epoch = ?")
-      .bind(1, now_utc())
-      .bind(2, group)
-      .bind(3, holder)
-      .bind(4, epoch)
-      .run();
-  if (impl_->db.changes() != 1) return false;
-  tx.commit();
-  return true;
+  auto& release = impl_->stmt(
+      "UPDATE ingest_leases SET holder = '', renewals = renewals + 1, expires_at = ? "
+      "WHERE ingest_group = ? AND holder = ? AND epoch = ?");
+  release.bind(1, now_utc()).bind(2, group).bind(3, holder).bind(4, epoch);
+  return set_if_matched(*impl_, release, tx);
 }
 
 }  // namespace ambdiag::storage

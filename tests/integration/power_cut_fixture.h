@@ -170,11 +170,7 @@ class PowerCutTest : public FleetTest {
     for (auto& a : agents) EXPECT_EQ(a->wait(120s), 0) << a->log() << "\n--- server ---\n" << server->log();
     // Every run complete, once, sample for sample.
     for (const auto& r : runs) {
-      const RunRecording rec = read_run(r.string());
-      const auto info = find_run(rec.run_id);
-      ASSERT_TRUE(info) << rec.run_id;
-      EXPECT_EQ(info->status, storage::RunStatus::complete) << rec.run_id << ": " << info->status_reason;
-      EXPECT_TRUE(stored_samples(rec.run_id) == read_file_bytes((r / "samples.f32").string())) << rec.run_id;
+      const RunRecording rec = expect_stored_complete(r);
       const int64_t blocks = (rec.frame_count() + 511) / 512;
       t.runs_duplicated += std::max<int64_t>(0, sql_int(db, "SELECT count(*) FROM sample_chunks WHERE run_id = " +
                                                                  sql_quote(rec.run_id)) - blocks);

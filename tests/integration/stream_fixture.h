@@ -82,6 +82,17 @@ class StreamTest : public ::testing::Test {
     auto h = storage::Historian::open(db.string(), storage::Historian::Mode::read);
     return h.read_samples(run_id);
   }
+  // The recording in `run_dir` is held complete, sample for sample; returns
+  // it (with its run id) for further checks.
+  RunRecording expect_stored_complete(const fs::path& run_dir) {
+    RunRecording rec = read_run(run_dir.string());
+    const auto info = find_run(rec.run_id);
+    EXPECT_TRUE(info) << rec.run_id;
+    if (!info) return rec;
+    EXPECT_EQ(info->status, storage::RunStatus::complete) << rec.run_id << ": " << info->status_reason;
+    EXPECT_TRUE(stored_samples(rec.run_id) == read_file_bytes((run_dir / "samples.f32").string())) << rec.run_id;
+    return rec;
+  }
   // Waits until the run has `status` (or the deadline passes).
   bool wait_status(const std::string& run_id, storage::RunStatus status, std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
