@@ -1,11 +1,14 @@
 // The web UI's files over real HTTP (server/src/routes/web_routes.cc): served
 // without a token with their content types, revalidated by ETag, compressed
-// when asked, and nothing outside the UI's folder whatever the path says.
+// when asked, and nothing outside the UI's folder whatever the path says;
+// GET /api/v1/me tells the UI its caller's role.
 #include <gtest/gtest.h>
 #include <httplib.h>
 
 #include <filesystem>
 #include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
@@ -35,11 +38,12 @@ class WebRoutes : public ::testing::Test {
   }
   static void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
 
-  void start(const std::string& web_dir) {
+  void start(const std::string& web_dir, bool anonymous_read = false) {
     RestOptions opt;
     opt.db_path = db_;
     opt.host = "127.0.0.1";
     opt.web_dir = web_dir;
+    opt.anonymous_read = anonymous_read;
     server_ = std::make_unique<RestServer>(opt);
     port_ = server_->start();
   }
@@ -119,6 +123,42 @@ TEST_F(WebRoutes, WithoutTheUiInstalledTheRootSaysSo) {
   server_.reset();
   start((dir_ / "nowhere").string());
   EXPECT_EQ(get("/ui/js/main.js")->status, 404);
+}
+
+// The UI shows only the actions of the caller's role: /me says which,
+// for a token of each role and for a reader without one.
+TEST_F(WebRoutes, MeTellsTheTokensNameAndRoleOrAnonymousUnderAnonymousRead) {
+  std::map<std::string, std::string> secret;
+  {
+    auto h = storage::Historian::open(db_);
+    secret["vera"] = h.add_token("vera", storage::Role::viewer);
+    secret["otto"] = h.add_token("otto", storage::Role::operator_);
+    secret["erin"] = h.add_token("erin", storage::Role::engineer);
+  }
+  const auto me = [&](const std::string& who) {
+    httplib::Headers hd;
+    if (!who.empty()) hd.emplace("Authorization", "Bearer " + (secret.count(who) ? secret[who] : who));
+    const auto r = get("/api/v1/me", hd);
+    EXPECT_TRUE(r);
+    return std::make_pair(r->status, r->status == 200 ? nlohmann::json::parse(r->body) : nlohmann::json());
+  };
+  for (const bool anonymous_read : {false, true}) {
+    server_.reset();
+    start(web_.string(), anonymous_read);
+    for (const auto& [who, role] : std::map<std::string, std::string>{{"vera", "viewer"}, {"otto", "operator"}, {"erin", "engineer"}}) {
+      const auto [status, j] = me(who);
+      EXPECT_EQ(status, 200);
+      EXPECT_EQ(j, (nlohmann::json{{"name", who}, {"role", role}, {"anonymous", false}}));
+    }
+    EXPECT_EQ(me("not-a-token").first, 401);  // a wrong token is refused, even where reading is open
+    const auto [status, j] = me("");
+    if (anonymous_read) {
+      EXPECT_EQ(status, 200);
+      EXPECT_EQ(j, (nlohmann::json{{"name", "anonymous"}, {"role", "viewer"}, {"anonymous", true}}));
+    } else {
+      EXPECT_EQ(status, 401);
+    }
+  }
 }
 
 TEST(FindWebDir, FindsTheBuildTreesFolderNextToTheBinary) {
