@@ -10,7 +10,7 @@ packages=(
   libsqlite3-dev sqlite3
   nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcpp-httplib-dev
+  libcpp-httplib-dev zlib1g-dev
   libclang-rt-14-dev
   python3
   openssl libssl-dev
