@@ -234,14 +234,28 @@ try {
       assert.equal(await page.textContent('#run-id'), faultyRun);
     });
 
-    await step('the alarm view lists the fleet alarms', async () => {
+    await step('the alarm view lists the fleet alarms; the operator shelves one with a comment and unshelves it; its history', async () => {
       await page.goto(`${url}/#/alarms`);
       await page.waitForSelector('main table.alarms, main .note, main p.muted');
-      if (await page.$('main table.alarms tr[data-alarm]')) {
-        // Each alarm's history: the operator's acknowledge with the comment.
-        await page.click('main table.alarms tr[data-alarm] button[data-act="history"]');
+      const row = 'main table.alarms tr[data-alarm]';
+      if (await page.$(row)) {
+        // The operator shelves it for 30 minutes with a comment, and unshelves it.
+        const id = await page.$eval(row, (tr) => tr.dataset.alarm);
+        await page.click(`${row} button[data-act="shelve"]`);
+        await page.fill('#alarm-minutes', '30');
+        await page.fill('#alarm-comment', 'pump to be serviced this shift');
+        await page.click('#alarm-ok');
+        await page.waitForSelector(`${row} [data-state="shelved"]`);
+        const shelved = await rest('GET', `/api/v1/alarms?pump_id=${encodeURIComponent(faulty)}`, 'viewer');
+        assert.equal(shelved.json.alarms.find((a) => String(a.alarm_id) === id).state, 'shelved');
+        await page.click(`${row} button[data-act="unshelve"]`);
+        await page.waitForSelector(`${row} [data-state="ack_active"]`);
+        // Each alarm's history: the acknowledge and the shelve with their comments.
+        await page.click(`${row} button[data-act="history"]`);
         await page.waitForSelector('main tr.history-row table.history');
-        assert.match(await page.textContent('main tr.history-row'), /seen in the UI test/);
+        const history = await page.textContent('main tr.history-row');
+        assert.match(history, /seen in the UI test/);
+        assert.match(history, /pump to be serviced this shift/);
       }
       await page.screenshot({ path: `${shots}/alarms.png`, fullPage: true });
     });

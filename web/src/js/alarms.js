@@ -11,7 +11,7 @@ const STATE_TEXT = {
   unack_active: '▲ ACTIVE, UNACK',
   ack_active: '△ active, ack',
   unack_rtn: '▽ cleared, unack',
-  shelved: '⏸ shelved',
+  shelved: '‖ shelved', // U+2016: DejaVu Sans has it, not U+23F8's pause sign
   suppressed: '⊘ suppressed',
   out_of_service: '⊘ out of service',
   normal: 'normal',
