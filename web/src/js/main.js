@@ -41,6 +41,7 @@ async function route() {
   const { name, arg } = parseHash();
   for (const a of document.querySelectorAll('[data-nav]')) a.classList.toggle('active', a.dataset.nav === name);
   if (session.mode === 'login' && name !== 'login') {
+    afterSignIn = location.hash; // a deep link (a run, a pump) opens once signed in
     location.hash = '#/login';
     return;
   }
@@ -99,8 +100,7 @@ async function start() {
   showWho();
   if (session.mode === 'login') {
     live.stop();
-    if (location.hash !== '#/login') location.hash = '#/login';
-    else route();
+    route(); // the login page; route() keeps the link asked for
     return;
   }
   live.start(token.get(), (ev) => {

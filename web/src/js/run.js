@@ -294,7 +294,7 @@ export async function runView({ main, crumbs, session }, runId) {
   const dg = diagnosisPanel(a.diagnosis);
   if (dg) main.append(h('div', { class: 'panel' }, dg));
   const frfBox = h('div', { class: 'panel', id: 'frf' });
-  main.append(h('h2', {}, 'FRF: measured vs model'), frfBox);
+  main.append(h('h2', {}, 'FRF: measured vs model vs modal fit'), frfBox);
   const modalBox = h('div', { class: 'panel' });
   main.append(h('h2', {}, 'Modes: reference vs actual'), modalBox);
   const explainBox = h('div', { class: 'panel' });
