@@ -1,4 +1,4 @@
-// Historian: retention (schema v7; retention.h, docs/storage.md
+// Historian: retention (schema v8; retention.h, docs/storage.md
 // "Retention"). Each pump's policy is versioned like its models; the sweep
 // plans from reads, then drops run by run, each drop a write transaction
 // that re-checks its run (still held, not receiving, not needed) so that it
@@ -12,6 +12,8 @@
 #include <atomic>
 #include <set>
 #include <thread>
+
+#include <nlohmann/json.hpp>
 
 #include "ambdiag/storage/historian.h"
 #include "historian_impl.h"

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/retention.h"
 

@@ -341,7 +341,28 @@ CREATE TABLE alarm_cursors (
   last_valid_at      TEXT
 ) STRICT;
 )sql"},
-    // v7: retention (retention.h; docs/storage.md "Retention"). What a sweep
+    // v7: ingest groups (docs/streaming.md "Several servers: ingest groups and
+    // failover"). One row per group: the DDS partitions it covers, the
+    // process holding it, the fencing epoch (+1 at each new holder; every
+    // ingest commit checks it in its own transaction) and a renewal count
+    // standbys watch: a holder that stops renewing for its lease is taken
+    // over. Times are the holder's clock, for people only: no standby
+    // compares clocks. Plain SQL, the same on PostgreSQL.
+    {7, R"sql(
+CREATE TABLE ingest_leases (
+  ingest_group  TEXT PRIMARY KEY CHECK (ingest_group <> ''),
+  partitions    TEXT NOT NULL CHECK (partitions <> ''),
+  holder        TEXT NOT NULL DEFAULT '',
+  epoch         INTEGER NOT NULL DEFAULT 0 CHECK (epoch >= 0),
+  renewals      INTEGER NOT NULL DEFAULT 0 CHECK (renewals >= 0),
+  lease_ms      INTEGER NOT NULL CHECK (lease_ms > 0),
+  acquired_at   TEXT,
+  renewed_at    TEXT,
+  expires_at    TEXT,
+  created_at    TEXT NOT NULL
+) STRICT;
+)sql"},
+    // v8: retention (retention.h; docs/storage.md "Retention"). What a sweep
     // dropped of each run stays on the run's row, so the run stays listed:
     // samples_state goes held -> dropping (marked, chunks being deleted in
     // transactions of a bounded size) -> dropped; frf_dropped_at marks the
@@ -351,7 +372,7 @@ CREATE TABLE alarm_cursors (
     // version, an open alarm or a queued or running job names it: indexes
     // to ask that by run. Each pump's policy is versioned like its models;
     // the lease lets one sweep run at a time on a database.
-    {7, R"sql(
+    {8, R"sql(
 ALTER TABLE runs ADD COLUMN samples_state TEXT NOT NULL DEFAULT 'held'
   CHECK (samples_state IN ('held', 'dropping', 'dropped'));
 ALTER TABLE runs ADD COLUMN samples_dropped_at TEXT;

@@ -1,4 +1,4 @@
-// Retention (schema v7): policies as JSON and per pump, the sweep by age
+// Retention (schema v8): policies as JSON and per pump, the sweep by age
 // and by size, what it never drops (reference runs, runs an open alarm or a
 // queued or running job names, runs still receiving), FRFs after samples,
 // monitoring, idempotency, the lease, a sweep stopped half way, and what a
@@ -92,6 +92,22 @@ TEST(RetentionPolicy, APumpsPolicyIsVersionedWithWhoAndWhen) {
   EXPECT_EQ(p.samples_days, 10.0);
   EXPECT_EQ(p.samples_bytes, 5000000);
   EXPECT_FALSE(p.frf_days);
+}
+
+TEST(RetentionPolicy, AFileOfTheSchemaBeforeRetentionGetsItWithEveryRunHeld) {
+  const auto path = db_path();
+  {
+    auto h = Historian::open(path);
+    store_run(h, "P-7/old", "P-7", 500, 1);
+  }
+  downgrade_schema(path, 7);
+  ASSERT_EQ(raw_query_int(path, "PRAGMA user_version"), 7);
+  auto h = Historian::open(path);
+  EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());
+  EXPECT_EQ(samples_state(h, "P-7/old"), "held");
+  EXPECT_EQ(h.read_samples("P-7/old").size(), 4000u);
+  received_days_ago(path, "P-7/old", 100);
+  EXPECT_EQ(h.sweep_retention(samples_for_days(30)).samples_runs, 1);
 }
 
 TEST(RetentionSweep, DropsTheSamplesOfRunsPastTheAgeAndKeepsTheRunsListed) {

@@ -42,13 +42,16 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
-// Undoes migration 7 (retention): its tables, indexes and the runs' columns.
-inline constexpr const char* kUndoRetentionV7Sql =
+// Undoes migration 8 (retention): its tables, indexes and the runs' columns.
+inline constexpr const char* kUndoRetentionV8Sql =
     "DROP TABLE retention_lease; DROP TABLE retention_policies; DROP INDEX alarms_open_by_run; "
     "DROP INDEX reference_runs_by_run; DROP INDEX runs_frf_held; DROP INDEX runs_samples_dropping; "
     "DROP INDEX runs_samples_held; ALTER TABLE runs DROP COLUMN frf_dropped_bytes; "
     "ALTER TABLE runs DROP COLUMN frf_dropped_at; ALTER TABLE runs DROP COLUMN samples_dropped_bytes; "
     "ALTER TABLE runs DROP COLUMN samples_dropped_at; ALTER TABLE runs DROP COLUMN samples_state;";
+
+// Undoes migration 7 (ingest groups' leases).
+inline constexpr const char* kUndoIngestLeasesV7Sql = "DROP TABLE ingest_leases;";
 
 // Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
 // for the tests that take a file back to an older schema version.
@@ -70,11 +73,12 @@ inline constexpr const char* kUndoServiceV4Sql =
     "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT;";
 
 // A file of the current schema taken back to what migration `version`
-// (3 or 4) left, for the tests of upgrades.
+// (3, 4, 6 or 7) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
-  raw_exec(path, kUndoRetentionV7Sql);
-  raw_exec(path, kUndoAlarmsV6Sql);
-  raw_exec(path, kUndoTrendsV5Sql);
+  if (version < 8) raw_exec(path, kUndoRetentionV8Sql);
+  if (version < 7) raw_exec(path, kUndoIngestLeasesV7Sql);
+  if (version < 6) raw_exec(path, kUndoAlarmsV6Sql);
+  if (version < 5) raw_exec(path, kUndoTrendsV5Sql);
   if (version < 4) raw_exec(path, kUndoServiceV4Sql);
   raw_exec(path, ("PRAGMA user_version = " + std::to_string(version) + ";").c_str());
 }

@@ -1,5 +1,5 @@
 // Retention: how long the historian keeps each pump's bulk data, and the
-// sweep that drops what a pump's policy no longer keeps (schema v7;
+// sweep that drops what a pump's policy no longer keeps (schema v8;
 // docs/storage.md "Retention"). The Historian's calls are declared in
 // historian.h under "retention" and implemented in historian_retention.cc.
 //
@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>  // the full header brings std::quoted into every includer of historian.h
 
 namespace ambdiag::storage {
 
