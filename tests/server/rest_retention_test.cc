@@ -11,6 +11,7 @@
 #include "ambdiag/server/retention_service.h"
 #include "ambdiag/storage/historian.h"
 #include "ambdiag/storage/recording_io.h"
+#include "rest_request.h"
 #include "test_support.h"
 
 namespace ambdiag::server {
@@ -56,12 +57,7 @@ class RestRetention : public ::testing::Test {
 
   httplib::Result request(const std::string& method, const std::string& path, const std::string& token,
                           const std::string& body = "") {
-    httplib::Client c("127.0.0.1", port_);
-    c.set_read_timeout(10, 0);
-    httplib::Headers h;
-    if (!token.empty()) h.emplace("Authorization", "Bearer " + token);
-    if (method == "GET") return c.Get(path, h);
-    return c.Put(path, h, body, "application/json");
+    return rest_request(port_, method, path, token, body);
   }
   static json body(const httplib::Result& r) { return json::parse(r->body); }
 

@@ -32,6 +32,14 @@ std::string error_of(const std::function<void()>& f) {
   return "";
 }
 
+// A historian at `path` with one run, P-7/a, received 100 days ago.
+Historian with_one_old_run(const std::string& path) {
+  auto h = Historian::open(path);
+  store_run(h, "P-7/a", "P-7", 500, 1);
+  received_days_ago(path, "P-7/a", 100);
+  return h;
+}
+
 std::vector<std::string> dropped_ids(const SweepReport& r, const std::string& what = "samples") {
   std::vector<std::string> out;
   for (const auto& s : r.runs)
@@ -392,9 +400,7 @@ TEST(RetentionSweep, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinished
 
 TEST(RetentionSweep, TheLeaseKeepsASecondSweepOutUntilItIsReleasedOrExpires) {
   const auto path = db_path();
-  auto h = Historian::open(path);
-  store_run(h, "P-7/a", "P-7", 500, 1);
-  received_days_ago(path, "P-7/a", 100);
+  auto h = with_one_old_run(path);
   auto other = Historian::open(path);
   // Another sweep holds the lease (a sweep of another process, running).
   raw_exec(path, ("INSERT INTO retention_lease VALUES ('sweep', 'other@host', '" + utc_days_ago(-1.0 / 24) + "')").c_str());
@@ -439,9 +445,7 @@ TEST(RetentionSweep, TwoConnectionsSweepingAtOnceDropEachRunOnce) {
 
 TEST(RetentionSweep, AStoredPolicyThatDoesNotReadDropsNothingOfItsPump) {
   const auto path = db_path();
-  auto h = Historian::open(path);
-  store_run(h, "P-7/a", "P-7", 500, 1);
-  received_days_ago(path, "P-7/a", 100);
+  auto h = with_one_old_run(path);
   raw_exec(path, "INSERT INTO retention_policies VALUES ('P-7', 1, '{\"samples_days\": \"soon\"}', '2026-01-01T00:00:00.000Z', 'x')");
   const auto r = h.sweep_retention(samples_for_days(30));
   ASSERT_EQ(r.errors.size(), 1u);

@@ -168,7 +168,7 @@ std::optional<json> analysis_view(storage::Historian& h, const std::string& run_
 
 std::string dropped_by_retention(const storage::RunInfo& run, bool samples) {
   const auto& at = samples ? run.samples_dropped_at : run.frf_dropped_at;
-  return "run '" + run.run_id + "': its " + (samples ? "samples were" : "analyses' files (frf.csv and figures) were") +
+  return "run '" + run.run_id + "': its " + (samples ? "samples were" : "analyses' files (frf.csv, figures, fit model) were") +
          " dropped by retention at " + at.value_or("?") + " (the retention policy of pump '" +
          run.pump_id + "'); its header, analysis results and trend points are kept";
 }

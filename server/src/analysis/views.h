@@ -28,7 +28,7 @@ std::optional<nlohmann::json> pump_view(storage::Historian& h, const std::string
 std::optional<nlohmann::json> analysis_view(storage::Historian& h, const std::string& run_id, const std::string& base_url);
 
 // "run 'R': its samples were dropped by retention at T" (`samples`), or
-// "... its analyses' files (frf.csv and figures) ...": what a 410 says.
+// "... its analyses' files (frf.csv, figures, fit model) ...": what a 410 says.
 std::string dropped_by_retention(const storage::RunInfo& run, bool samples);
 
 // rest.md's job (with "result" parsed, when done).

@@ -8,8 +8,8 @@
 //     by age (`samples_days`, counted from when the historian received the
 //     run: runs.created_at, the server clock) and/or by size
 //     (`samples_bytes`: the pump's samples held, oldest runs dropped first);
-//   - the files of a run's analysis jobs (frf.csv and the figures drawn from
-//     it), `frf_days` after the run was received and never before its
+//   - the files of a run's analysis jobs (frf.csv, the figures, fit_model.json),
+//     `frf_days` after the run was received and never before its
 //     samples are gone (FRFs are kept at least as long as samples);
 //   - monitoring snapshots older than `monitoring_days` (by their time_ns).
 // Kept always: run headers, analysis results, trend points, alarms and their
