@@ -32,8 +32,10 @@ void require_files(const storage::RunInfo& run) {
 // The analysis' measured FRF, the grid every curve of the run is drawn on.
 FrfData measured_frf(storage::Historian& h, const storage::Job& job, const storage::RunInfo& run) {
   const auto measured = h.find_artifact(job.job_id, "frf.csv");
-  if (!measured) require_files(run);
-  if (!measured) throw NotFoundError("the analysis of run '" + run.run_id + "' has no frf.csv");
+  if (!measured) {
+    require_files(run);
+    throw NotFoundError("the analysis of run '" + run.run_id + "' has no frf.csv");
+  }
   return parse_frf_csv(measured->data, "frf.csv of run " + run.run_id);
 }
 
@@ -60,11 +62,12 @@ std::string fit_frf_csv(storage::Historian& h, const std::string& run_id) {
   auto snap = h.snapshot();
   const auto [run, job] = analysed_run(h, run_id);
   const auto fit = h.find_artifact(job.job_id, "fit_model.json");
-  if (!fit) require_files(run);
-  if (!fit)
+  if (!fit) {
+    require_files(run);
     throw NotFoundError("the analysis of run '" + run_id +
                         "' was made before fit_model.json was kept; the run's next analysis (after a new model or "
                         "reference version) keeps it");
+  }
   const FrfData grid = measured_frf(h, job, run);
   // The file is the server's own: a broken one is a server fault (500), not a bad request.
   try {

@@ -1,7 +1,6 @@
 // Each pump's retention policy (docs/service.md "Retention"): the effective
 // policy with where each value comes from, a new version by an engineer,
 // and the versions with who made them.
-#include "ambdiag/core/error.h"
 #include "ambdiag/server/retention_service.h"
 #include "routes/route_context.h"
 
