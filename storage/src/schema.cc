@@ -344,7 +344,7 @@ CREATE TABLE alarm_cursors (
 };
 
 int pragma_int(Db& db, const char* sql) {
-  Stmt s(db, sql);
+  SqliteStmt s(db, sql);
   return s.step() ? static_cast<int>(s.col_int(0)) : 0;
 }
 
@@ -359,7 +359,7 @@ void set_pragmas(Db& db, bool read_only) {
     // SQLite's default 4 KiB pages. 64 KiB pages made inserts of 30 KiB
     // chunks 2.3x faster; they were turned off for a REST hang that turned
     // out not to be SQLite's (docs/storage.md, page_size).
-    Stmt wal(db, "PRAGMA journal_mode = WAL");
+    SqliteStmt wal(db, "PRAGMA journal_mode = WAL");
     if (!wal.step() || wal.col_text(0) != "wal")
       throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");
   }

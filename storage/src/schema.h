@@ -1,7 +1,7 @@
 // The historian's schema: pragmas, migrations keyed by PRAGMA user_version.
 #pragma once
 
-#include "sqlite_db.h"
+#include "sql/sqlite/sqlite_db.h"
 
 namespace ambdiag::storage::detail {
 
