@@ -201,8 +201,8 @@ std::optional<AlarmRecord> Historian::find_alarm(std::int64_t alarm_id) {
 
 std::vector<AlarmRecord> Historian::list_alarms(const AlarmFilter& f) {
   if (f.limit < 1) throw InputError("list_alarms: limit must be >= 1");
-  auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE (?1 IS NULL OR pump_id = ?1) "
-                        "AND (?2 IS NULL OR state = ?2) AND (?3 IS NULL OR active = ?3) ORDER BY alarm_id DESC LIMIT ?4");
+  auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE (pump_id = ?1 OR ?1 IS NULL) "
+                        "AND (state = ?2 OR ?2 IS NULL) AND (active = ?3 OR ?3 IS NULL) ORDER BY alarm_id DESC LIMIT ?4");
   if (f.pump_id) s.bind(1, *f.pump_id); else s.bind_null(1);
   if (f.state) s.bind(2, *f.state); else s.bind_null(2);
   if (f.active) s.bind(3, std::int64_t{*f.active}); else s.bind_null(3);
@@ -294,7 +294,7 @@ std::optional<RunInfo> Historian::next_run_for_alarms(const std::string& pump_id
                                                       const std::optional<std::pair<std::string, std::string>>& after) {
   auto& s = impl_->stmt(
       "SELECT run_id FROM runs WHERE pump_id = ?1 AND status = 'complete' AND kind = 'identification' "
-      "AND (?2 IS NULL OR (started_at, run_id) > (?2, ?3)) ORDER BY started_at, run_id LIMIT 1");
+      "AND ((started_at, run_id) > (?2, ?3) OR ?2 IS NULL) ORDER BY started_at, run_id LIMIT 1");
   s.bind(1, pump_id);
   if (after) s.bind(2, after->first).bind(3, after->second); else s.bind_null(2).bind_null(3);
   if (!s.step()) return std::nullopt;

@@ -58,10 +58,12 @@ struct Historian::Impl {
   // PostgreSQL: several processes write at once (READ COMMITTED), so a
   // check followed by a write (the next version number, "unless one
   // exists", a run's state) takes a transaction-scoped advisory lock on the
-  // key's hash (a collision only makes two keys wait for each other).
+  // key's hash, with the schema's name: historians in other schemas of
+  // the database never wait for this one (a collision only makes two keys
+  // wait for each other).
   void lock(LockSpace space, const std::string& key) {
     if (dialect() != Dialect::postgres) return;
-    stmt("SELECT pg_advisory_xact_lock(CAST(? AS integer), hashtext(?))")
+    stmt("SELECT pg_advisory_xact_lock(CAST(? AS integer), hashtext(current_schema() || ?))")
         .bind(1, static_cast<std::int64_t>(space))
         .bind(2, key)
         .run();

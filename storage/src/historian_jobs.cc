@@ -137,13 +137,13 @@ std::optional<Job> Historian::claim_job(const std::string& worker, const std::ve
     auto& pick = impl_->dialect() == Dialect::postgres
                      ? impl_->stmt(
                            "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
-                           "j.depends_on WHERE j.status = 'queued' AND (?1 IS NULL OR j.kind IN (SELECT value FROM "
-                           "json_array_elements_text(CAST(?1 AS json)))) AND (j.depends_on IS NULL OR d.status IN "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_array_elements_text(CAST(?1 AS json))) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN "
                            "('done', 'failed', 'cancelled')) ORDER BY j.job_id LIMIT 1 FOR UPDATE OF j SKIP LOCKED")
                      : impl_->stmt(
                            "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
-                           "j.depends_on WHERE j.status = 'queued' AND (?1 IS NULL OR j.kind IN (SELECT value FROM "
-                           "json_each(?1))) AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_each(?1)) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
                            "ORDER BY j.job_id LIMIT 1");
     if (kinds.empty())
       pick.bind_null(1);
@@ -345,7 +345,7 @@ std::vector<Job> Historian::list_jobs(const JobFilter& filter) {
   // One statement per leading key, so that the planner walks that key's
   // index (newest first) and the other conditions only filter.
 #define AMBDIAG_JOB_FILTERS \
-  "(?1 IS NULL OR run_id = ?1) AND (?2 IS NULL OR pump_id = ?2) AND (?3 IS NULL OR kind = ?3) AND (?4 IS NULL OR status = ?4)"
+  "(run_id = ?1 OR ?1 IS NULL) AND (pump_id = ?2 OR ?2 IS NULL) AND (kind = ?3 OR ?3 IS NULL) AND (status = ?4 OR ?4 IS NULL)"
   auto& s = filter.run_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE run_id = ?1 AND " AMBDIAG_JOB_FILTERS
                                         " ORDER BY job_id DESC LIMIT ?5")
             : filter.pump_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE pump_id = ?2 AND " AMBDIAG_JOB_FILTERS

@@ -12,7 +12,8 @@
 namespace ambdiag::storage {
 namespace {
 
-std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
+class HistorianAlarmsTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianAlarmsTest);
 
 AlarmRecord open_alarm(const std::string& pump, const std::string& rule) {
   AlarmRecord a;
@@ -53,8 +54,8 @@ std::int64_t raise(Historian& h, const std::string& pump, const std::string& rul
   return c.alarms[0].alarm_id;
 }
 
-TEST(HistorianAlarms, OneOpenAlarmPerPumpAndRule) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, OneOpenAlarmPerPumpAndRule) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto id = raise(h, "P-1", "detection");
   raise(h, "P-2", "detection");       // another pump
@@ -93,17 +94,17 @@ TEST(HistorianAlarms, OneOpenAlarmPerPumpAndRule) {
   EXPECT_EQ(h.list_alarms(f).size(), 3u);
 }
 
-TEST(HistorianAlarms, JournalIsAppendOnlyWithAGrowingSeq) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, JournalIsAppendOnlyWithAGrowingSeq) {
+  const auto path = location();
   {
     auto h = Historian::open(path);
     raise(h, "P-1", "detection");
     raise(h, "P-2", "detection");
     raise(h, "P-3", "detection");
   }
-  EXPECT_NE(raw_exec_error(path, "UPDATE alarm_events SET by = 'mallory'"), "");
-  EXPECT_NE(raw_exec_error(path, "DELETE FROM alarm_events"), "");
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM alarm_events"), 3);
+  EXPECT_NE(raw_error(path, "UPDATE alarm_events SET by = 'mallory'"), "");
+  EXPECT_NE(raw_error(path, "DELETE FROM alarm_events"), "");
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM alarm_events"), 3);
   auto h = Historian::open(path);  // kept across a reopen
   const auto all = h.alarm_events(0, 100);
   ASSERT_EQ(all.size(), 3u);
@@ -123,8 +124,8 @@ TEST(HistorianAlarms, JournalIsAppendOnlyWithAGrowingSeq) {
   EXPECT_GT(h.alarm_history(next).front().seq, all[2].seq);
 }
 
-TEST(HistorianAlarms, RulesVersionsMemoriesAndCursorPersist) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, RulesVersionsMemoriesAndCursorPersist) {
+  const auto path = location();
   {
     auto h = Historian::open(path);
     EXPECT_FALSE(h.find_alarm_rules("P-1"));
@@ -153,8 +154,8 @@ TEST(HistorianAlarms, RulesVersionsMemoriesAndCursorPersist) {
   EXPECT_DOUBLE_EQ(a.value.value_or(0), 1.7);
 }
 
-TEST(HistorianAlarms, ExpiredShelvesAreFoundByTime) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianAlarmsTest, ExpiredShelvesAreFoundByTime) {
+  auto h = Historian::open(location());
   const auto id = raise(h, "P-1", "detection");
   auto a = *h.find_alarm(id);
   a.state = "shelved";

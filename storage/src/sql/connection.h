@@ -4,6 +4,11 @@
 // SQL once, with `?` or `?N` placeholders bound from 1, and run it through
 // these classes; where the dialects differ they ask `dialect()` (see
 // docs/storage.md, "PostgreSQL", for the list of those places).
+//
+// For PostgreSQL, which types each parameter from the SQL: the first use of
+// a parameter must give its type, i.e. `(run_id = ?1 OR ?1 IS NULL)`, not
+// `(?1 IS NULL OR run_id = ?1)` ("could not determine data type"); and a
+// parameter is one type throughout (not a number here and text in a `||`).
 #pragma once
 
 #include <cstdint>

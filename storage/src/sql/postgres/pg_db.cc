@@ -180,7 +180,8 @@ PgStmt::~PgStmt() { finish_stream(); }
 void PgStmt::prepare_on_server() {
   name_ = db_.next_statement_name();
   PgResult p(PQprepare(db_.get(), name_.c_str(), sql_.c_str(), 0, nullptr));
-  db_.check(p.get(), "prepare");
+  if (!p || PQresultStatus(p.get()) != PGRES_COMMAND_OK)  // this program's SQL: say which
+    db_.check(p.get(), ("prepare " + sql_).c_str());
   PgResult d(PQdescribePrepared(db_.get(), name_.c_str()));
   db_.check(d.get(), "describe");
   const int n = PQnparams(d.get());
