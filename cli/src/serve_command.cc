@@ -113,8 +113,12 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGTERM, on_stop_signal);
 
   // One server per historian file: two would both ingest and both analyse.
-  const ProcessLock lock(*db + ".lock", "historian " + *db, "ambdiag serve",
-                         "; one server per historian file (several servers share a PostgreSQL database)");
+  // A PostgreSQL database has no file to lock; its writers take the locks
+  // each write needs (docs/storage.md, "PostgreSQL").
+  std::optional<ProcessLock> lock;
+  if (!storage::is_postgres_location(*db))
+    lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
+                 "; one server per historian file (several servers share a PostgreSQL database)");
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs; the
   // checkpoints also say which commits are durable (docs/storage.md).
@@ -166,7 +170,8 @@ int run_serve(const std::vector<std::string>& argv) {
   };
   server::RestServer rest(rest_opt);
   const int bound_port = rest.start();
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n", db->c_str(),
+  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n",
+               storage::display_location(*db).c_str(),
                opt.domain, opt.partitions.front().c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
   if (!rest_opt.web_dir.empty())
     std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
@@ -231,6 +236,8 @@ std::vector<Command> serve_commands() {
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
            "requests without one read as viewer. One server per historian file (FILE.lock).\n"
+           "FILE may be a PostgreSQL database instead: --db postgresql://USER@HOST/DB (a libpq URI;\n"
+           "  docs/storage.md \"PostgreSQL\"), created there at the first start.\n"
            "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
