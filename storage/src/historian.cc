@@ -221,10 +221,14 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
                         "INSERT INTO sample_chunks (run_id, seq, first_frame, n_frames, data) VALUES (?, ?, ?, ?, ?) "
                         "ON CONFLICT (run_id, seq) DO NOTHING");
   for (const auto& c : chunks) {
-    ins.reset().bind(1, run_id).bind(2, c.seq).bind(3, c.first_frame).bind(4, c.n_frames).bind_blob(5, c.bytes);
+    ins.bind(1, run_id).bind(2, c.seq).bind(3, c.first_frame).bind(4, c.n_frames).bind_blob(5, c.bytes);
     if (impl_->dialect() == Dialect::postgres) ins.bind(6, st.created_at);
-    ins.run();
-    if (db.changes() == 1) {
+    ins.send();
+  }
+  const auto inserted = ins.sent();
+  for (size_t k = 0; k < chunks.size(); ++k) {
+    const auto& c = chunks[k];
+    if (inserted[k] == 1) {
       if (st.status == RunStatus::complete)
         throw InputError(ctx + " chunk seq " + std::to_string(c.seq) + ": the run is complete; no new chunks");
       ++result.stored;

@@ -97,7 +97,7 @@ struct ConnFree {
 
 }  // namespace
 
-PgCluster PgCluster::start(const fs::path& dir) {
+PgCluster PgCluster::start(const fs::path& dir, bool durable) {
   const fs::path bin = bin_dir();
   const passwd* pw = server_user();
   stop(dir);  // whatever an interrupted run left there
@@ -112,7 +112,8 @@ PgCluster PgCluster::start(const fs::path& dir) {
   // fsync off: a test cluster need not survive a power cut. Enough
   // connections for a server's reader pool and the concurrency tests.
   const std::string opts = "-c listen_addresses='' -c unix_socket_directories=" + dir.string() + " -p " +
-                           std::to_string(kPort) + " -c fsync=off -c full_page_writes=off -c max_connections=300";
+                           std::to_string(kPort) + " -c max_connections=300" +
+                           (durable ? "" : " -c fsync=off -c full_page_writes=off");
   if (run({(bin / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-w", "-t", "60", "-o", opts,
            "start"},
           log) != 0)

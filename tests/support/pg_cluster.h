@@ -18,10 +18,12 @@ namespace ambdiag::testing {
 
 class PgCluster {
  public:
-  // initdb (when the folder holds no cluster yet) and start. Throws
-  // std::runtime_error saying what to install when PostgreSQL's programs
-  // are missing, or what failed (with the server's log).
-  static PgCluster start(const std::filesystem::path& dir);
+  // initdb into the folder (whatever was there is removed) and start.
+  // Throws std::runtime_error saying what to install when PostgreSQL's
+  // programs are missing, or what failed (with the server's log).
+  // `durable`: fsync on, as a production server (benchmarks); the tests'
+  // cluster runs without.
+  static PgCluster start(const std::filesystem::path& dir, bool durable = false);
   // The cluster started in `dir`, if it runs and accepts connections.
   static std::optional<PgCluster> attach(const std::filesystem::path& dir);
   // Stops the server at once and removes the folder.

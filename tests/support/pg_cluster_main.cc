@@ -1,5 +1,6 @@
-// ambdiag-test-pg start|stop [DIR]: the PostgreSQL cluster one ctest run
-// shares (tests/support/pg_cluster.h), in the build's folder by default.
+// ambdiag-test-pg start|stop [DIR] [durable]: the PostgreSQL cluster one
+// ctest run shares (tests/support/pg_cluster.h), in the build's folder by
+// default; `durable`: with fsync on, for benchmarks (docs/benchmarks.md).
 // Without PostgreSQL (or with AMBDIAG_NO_POSTGRES=1) `start` says so and
 // succeeds: the SQLite half of the tests runs, and each PostgreSQL test
 // fails saying what is missing (or is skipped, with AMBDIAG_NO_POSTGRES=1).
@@ -19,7 +20,7 @@ int main(int argc, char** argv) {
         std::puts("AMBDIAG_NO_POSTGRES=1: no PostgreSQL cluster, the PostgreSQL tests are skipped");
         return 0;
       }
-      const auto c = ambdiag::testing::PgCluster::start(dir);
+      const auto c = ambdiag::testing::PgCluster::start(dir, argc > 3 && std::string(argv[3]) == "durable");
       std::printf("PostgreSQL test cluster: %s\n", c.uri().c_str());
       return 0;
     }

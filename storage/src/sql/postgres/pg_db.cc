@@ -175,7 +175,10 @@ PgStmt::PgStmt(PgDb& db, const char* sql, Fetch fetch) : db_(db), sql_(numbered_
   prepare_on_server();
 }
 
-PgStmt::~PgStmt() { finish_stream(); }
+PgStmt::~PgStmt() {
+  finish_stream();
+  abandon_pipeline();
+}
 
 void PgStmt::prepare_on_server() {
   name_ = db_.next_statement_name();
@@ -193,6 +196,7 @@ void PgStmt::prepare_on_server() {
 
 PgStmt& PgStmt::reset() {
   finish_stream();
+  abandon_pipeline();
   result_.reset();
   row_ = -1;
   executed_ = false;
@@ -268,31 +272,90 @@ PgStmt& PgStmt::bind_null(int i) {
   return *this;
 }
 
+PgStmt::Args PgStmt::args() const {
+  Args a;
+  for (const auto& p : params_) {
+    a.values.push_back(p.value);
+    a.lengths.push_back(p.length);
+    a.formats.push_back(p.format);
+  }
+  return a;
+}
+
 void PgStmt::execute() {
   if (db_.streaming && db_.streaming != this)
-    throw std::logic_error("a statement ran while another read its rows one by one: " + sql_);
+    throw std::logic_error("a statement ran while another read its rows one by one or pipelined: " + sql_);
   db_.ensure_connected();
   if (prepared_generation_ != db_.generation()) prepare_on_server();  // reconnected: the same types again
-  const auto n = params_.size();
-  std::vector<const char*> values(n);
-  std::vector<int> lengths(n), formats(n);
-  for (size_t k = 0; k < n; ++k) {
-    values[k] = params_[k].value;
-    lengths[k] = params_[k].length;
-    formats[k] = params_[k].format;
-  }
-  const int nn = static_cast<int>(n);
+  const Args a = args();
+  const int n = static_cast<int>(params_.size());
   if (fetch_ == Fetch::all) {
-    result_.reset(PQexecPrepared(db_.get(), name_.c_str(), nn, values.data(), lengths.data(), formats.data(), 1));
+    result_.reset(PQexecPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1));
     db_.check(result_.get(), "statement");
     db_.set_changes(std::atoll(PQcmdTuples(result_.get())));
     return;
   }
-  if (!PQsendQueryPrepared(db_.get(), name_.c_str(), nn, values.data(), lengths.data(), formats.data(), 1))
+  if (!PQsendQueryPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1))
     db_.fail("statement", PQerrorMessage(db_.get()));
   streaming_ = true;
   db_.streaming = this;
   PQsetSingleRowMode(db_.get());
+}
+
+void PgStmt::send() {
+  if (!pipelined_) {
+    if (db_.streaming) throw std::logic_error("a pipeline began while another statement was busy: " + sql_);
+    db_.ensure_connected();
+    if (prepared_generation_ != db_.generation()) prepare_on_server();
+    if (!PQenterPipelineMode(db_.get())) db_.fail("pipeline", PQerrorMessage(db_.get()));
+    db_.streaming = this;
+  }
+  const Args a = args();
+  // libpq copies the values into its buffer here: the bindings may change.
+  if (!PQsendQueryPrepared(db_.get(), name_.c_str(), static_cast<int>(params_.size()), a.values.data(),
+                           a.lengths.data(), a.formats.data(), 1)) {
+    const std::string msg = PQerrorMessage(db_.get());
+    abandon_pipeline();
+    db_.fail("statement", msg);
+  }
+  ++pipelined_;
+}
+
+std::vector<std::int64_t> PgStmt::sent() {
+  std::vector<std::int64_t> changes;
+  if (!pipelined_) return changes;
+  PQpipelineSync(db_.get());
+  PgResult error;
+  // Each run's result then a nullptr; after an error the rest are
+  // "aborted" (the transaction is); then the sync's own result.
+  for (int done = 0; done < pipelined_;) {
+    PgResult r(PQgetResult(db_.get()));
+    if (!r) {
+      ++done;
+      continue;
+    }
+    const auto st = PQresultStatus(r.get());
+    if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK)
+      changes.push_back(std::atoll(PQcmdTuples(r.get())));
+    else if (!error && st != PGRES_PIPELINE_ABORTED)
+      error = std::move(r);
+  }
+  PgResult sync(PQgetResult(db_.get()));
+  PQexitPipelineMode(db_.get());
+  const auto runs = static_cast<size_t>(pipelined_);
+  pipelined_ = 0;
+  db_.streaming = nullptr;
+  if (error) db_.check(error.get(), "statement");
+  if (changes.size() != runs) db_.fail("statement", PQerrorMessage(db_.get()));  // the connection was lost
+  return changes;
+}
+
+void PgStmt::abandon_pipeline() noexcept {
+  if (!pipelined_) return;
+  try {
+    sent();
+  } catch (...) {  // the caller is failing already
+  }
 }
 
 bool PgStmt::step() {

@@ -94,6 +94,8 @@ class PgStmt final : public Stmt {
   PgStmt& bind_blob(int i, std::span<const std::uint8_t> v) override;
   PgStmt& bind_null(int i) override;
   bool step() override;
+  void send() override;
+  std::vector<std::int64_t> sent() override;
 
   std::int64_t col_int(int i) const override;
   double col_double(int i) const override;
@@ -112,7 +114,14 @@ class PgStmt final : public Stmt {
   Param& param(int i);
   void set_owned(Param& p, int format);
   void execute();
+  // The values, lengths and formats PQexecPrepared and its kin take.
+  struct Args {
+    std::vector<const char*> values;
+    std::vector<int> lengths, formats;
+  };
+  Args args() const;
   void finish_stream() noexcept;
+  void abandon_pipeline() noexcept;
   std::span<const char> raw(int i) const;
 
   PgDb& db_;
@@ -125,6 +134,7 @@ class PgStmt final : public Stmt {
   PgResult result_;
   int row_ = -1;
   bool executed_ = false, streaming_ = false;
+  int pipelined_ = 0;  // runs send() queued, their results not yet read
 };
 
 // `?` and `?N` placeholders (SQLite's) as `$n` (PostgreSQL's), outside

@@ -109,6 +109,13 @@ bool SqliteStmt::step() {
   return false;
 }
 
+void SqliteStmt::send() {
+  while (step()) {
+  }
+  changes_.push_back(db_->changes());
+  sqlite3_reset(s_);  // the bindings stay for the caller to change
+}
+
 std::string SqliteStmt::col_text(int i) const {
   const auto* p = sqlite3_column_text(s_, i);
   const int n = sqlite3_column_bytes(s_, i);

@@ -11,6 +11,8 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "sql/connection.h"
 
@@ -63,6 +65,8 @@ class SqliteStmt final : public detail::Stmt {
   SqliteStmt& bind_blob(int i, std::span<const std::uint8_t> v) override;
   SqliteStmt& bind_null(int i) override;
   bool step() override;
+  void send() override;
+  std::vector<std::int64_t> sent() override { return std::exchange(changes_, {}); }
 
   std::int64_t col_int(int i) const override { return sqlite3_column_int64(s_, i); }
   double col_double(int i) const override { return sqlite3_column_double(s_, i); }
@@ -73,6 +77,7 @@ class SqliteStmt final : public detail::Stmt {
  private:
   sqlite3_stmt* s_ = nullptr;
   const Db* db_;
+  std::vector<std::int64_t> changes_;  // of the runs send() made
 };
 
 }  // namespace ambdiag::storage::detail
