@@ -30,9 +30,12 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <optional>
 #include <random>
 #include <regex>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -96,17 +99,34 @@ struct Env {
   int domain;
   std::map<std::string, std::string> env;
   int n = 0;
+  // With DDS Security (--security): the plant PKI made by the deploy
+  // script; the server and each agent run with their own identity, the
+  // agents publish in their pump's partition only (docs/streaming.md).
+  std::optional<fs::path> pki;
+  std::map<std::string, std::string> env_of(const std::string& identity) const {
+    if (!pki) return env;
+    return {{"CYCLONEDDS_URI", env.at("CYCLONEDDS_URI") + ",file://" + (*pki / identity / "security.xml").string()}};
+  }
+  // Enrols the agents of these pumps (run folders named by pump, see main).
+  void enrol(const std::string& pump) const {
+    if (!pki) return;
+    const std::string cmd = std::string(AMBDIAG_PKI_SCRIPT) + " agent " + pki->string() + " " + pump +
+                            " --site bench >>" + (dir / "pki.log").string() + " 2>&1";
+    if (std::system(cmd.c_str()) != 0) throw std::runtime_error("enrolling " + pump + " failed: see " + (dir / "pki.log").string());
+  }
   std::unique_ptr<Process> server(const std::vector<std::string>& extra = {}) {
     std::vector<std::string> a = {AMBDIAG_CLI, "serve", "--db", (dir / "bench.db").string(), "--http-port", "0",
                                   "--domain", std::to_string(domain), "--quiet"};
     a.insert(a.end(), extra.begin(), extra.end());
-    return std::make_unique<Process>(a, env, (dir / ("server" + std::to_string(n++) + ".log")).string());
+    return std::make_unique<Process>(a, env_of("server"), (dir / ("server" + std::to_string(n++) + ".log")).string());
   }
   std::unique_ptr<Process> agent(const fs::path& run, bool fast) {
     std::vector<std::string> a = {AMBDIAG_AGENT, "replay", run.string(), "--domain", std::to_string(domain),
                                   "--spool-dir", (dir / ("spool" + std::to_string(n))).string(), "--timeout", "60"};
     if (fast) a.push_back("--fast");
-    return std::make_unique<Process>(a, env, (dir / ("agent" + std::to_string(n++) + ".log")).string());
+    const std::string pump = run.filename().string();
+    if (pki) a.insert(a.end(), {"--config", (*pki / "agents" / pump / "agent.json").string()});
+    return std::make_unique<Process>(a, env_of("agents/" + pump), (dir / ("agent" + std::to_string(n++) + ".log")).string());
   }
 };
 
@@ -285,7 +305,7 @@ int main(int argc, char** argv) {
   ambdiag::retain_freed_memory();
   double seconds = 30;  // per run: 30 s x 8 kHz x 15 ch x 4 B = 14.4 MB
   int agents = 4, pumps = 16, reps = 3, failed_total = 0;
-  bool quick = false;
+  bool quick = false, security = false;
   std::vector<std::string> serve_extra;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -296,9 +316,10 @@ int main(int argc, char** argv) {
     else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--inline-checkpoints") serve_extra.push_back("--bench-inline-checkpoints");
     else if (a == "--durability" && i + 1 < argc) serve_extra.insert(serve_extra.end(), {"--durability", argv[++i]});
+    else if (a == "--security") security = true;
     else {
       std::fprintf(stderr, "usage: bench_stream [--quick] [--seconds S] [--agents K] [--pumps P] [--reps R] [--inline-checkpoints]\n"
-                           "                    [--durability checkpoint|full]\n");
+                           "                    [--durability checkpoint|full] [--security]\n");
       return 2;
     }
   }
@@ -310,13 +331,24 @@ int main(int argc, char** argv) {
   fs::create_directories(e.dir);
   e.domain = 180 + static_cast<int>(getpid() % 40);
   e.env = {{"CYCLONEDDS_URI", "file://" AMBDIAG_CYCLONE_LOCAL_XML}};
+  if (security) {
+    e.pki = e.dir / "pki";
+    const std::string cmd = std::string(AMBDIAG_PKI_SCRIPT) + " init " + e.pki->string() + " >>" +
+                            (e.dir / "pki.log").string() + " 2>&1";
+    if (std::system(cmd.c_str()) != 0) {
+      std::fprintf(stderr, "the PKI script failed: see %s\n", (e.dir / "pki.log").c_str());
+      return 1;
+    }
+    std::printf("DDS Security on: authentication, access control and encryption (deploy/security/ambdiag-pki.sh)\n");
+  }
 
   std::vector<ambdiag::RunRecording> runs;
   std::vector<fs::path> run_dirs;
   double bytes = 0;
   for (int k = 0; k < agents; ++k) {
     runs.push_back(make_run("B-" + std::to_string(k), seconds, static_cast<unsigned>(k + 1)));
-    run_dirs.push_back(e.dir / ("run" + std::to_string(k)));
+    run_dirs.push_back(e.dir / runs.back().pump_id);  // named by pump: the agent's identity (--security)
+    e.enrol(runs.back().pump_id);
     ambdiag::write_run(run_dirs.back().string(), runs.back());
     bytes += static_cast<double>(runs.back().samples.size() * 4);
   }
@@ -382,7 +414,8 @@ int main(int argc, char** argv) {
     const double live_s = quick ? 3 : 10;
     for (int k = 0; k < pumps; ++k) {
       const auto r = make_run("L-" + std::to_string(k), live_s, static_cast<unsigned>(100 + k));
-      live.push_back(e.dir / ("live" + std::to_string(k)));
+      live.push_back(e.dir / r.pump_id);
+      e.enrol(r.pump_id);
       ambdiag::write_run(live.back().string(), r);
       live_bytes += static_cast<double>(r.samples.size() * 4);
     }
