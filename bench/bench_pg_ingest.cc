@@ -21,13 +21,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/historian.h"
+#include "bench_chunks.h"
 #include "bench_util.h"
 
 namespace {
@@ -36,9 +36,9 @@ namespace fs = std::filesystem;
 using ambdiag::storage::Chunk;
 using ambdiag::storage::Historian;
 
-constexpr int kChannels = 16;
-constexpr std::int64_t kFramesPerChunk = 512;  // 16 x 4 x 512 = 32 KiB
-constexpr std::size_t kChunkBytes = kChannels * 4 * kFramesPerChunk;
+using ambdiag::bench::kChunkBytes;
+using ambdiag::bench::kFramesPerChunk;
+using ambdiag::bench::run_json;
 
 [[noreturn]] void die(const std::string& what) {
   std::fprintf(stderr, "bench_pg_ingest: %s\n", what.c_str());
@@ -201,24 +201,12 @@ void bare(const std::string& uri, const std::vector<std::uint8_t>& data, std::si
   db.exec("DROP SCHEMA ambdiag_bench_raw CASCADE");
 }
 
-std::string run_json(const std::string& run_id) {
-  std::string j = R"({"format": "ambdiag.run/1", "pump_id": "P-1", "run_id": ")" + run_id +
-                  R"(", "kind": "monitoring", "started_at": "2026-11-22T00:00:00Z", "speed_rpm": 3000,)"
-                  R"( "sample_rate_hz": 8000, "channels": [)";
-  for (int c = 0; c < kChannels; ++c)
-    j += std::string(c ? ", " : "") + R"({"name": "x)" + std::to_string(c) + R"(", "role": "displacement", "unit": "m"})";
-  return j + "]}";
-}
-
 // put_chunks, end_run and the read-back on one backend. `admin`: on
 // PostgreSQL, a connection that finds the historian's server process by its
 // application_name (nullptr: SQLite).
 void historian(const std::string& label, const std::string& location, const std::vector<std::uint8_t>& data,
                std::size_t n_chunks, const Conn* admin) {
-  std::vector<Chunk> chunks;
-  for (std::size_t i = 0; i < n_chunks; ++i)
-    chunks.push_back({static_cast<std::int64_t>(i), static_cast<std::int64_t>(i) * kFramesPerChunk, kFramesPerChunk,
-                      std::span(data).subspan(i * kChunkBytes, kChunkBytes)});
+  const std::vector<Chunk> chunks = ambdiag::bench::chunks_of(data);
   auto h = Historian::open(location);
   const long pid = admin ? std::atol(admin->exec("SELECT pid FROM pg_stat_activity WHERE application_name = "
                                                  "'bench_pg_ingest' ORDER BY backend_start DESC LIMIT 1")
@@ -266,15 +254,7 @@ int main(int argc, char** argv) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::size_t n_chunks = static_cast<std::size_t>(mb * 1e6 / kChunkBytes);
-  std::vector<std::uint8_t> data(n_chunks * kChunkBytes);
-  {
-    std::mt19937 rng(1);
-    std::normal_distribution<float> d;
-    for (std::size_t i = 0; i < data.size(); i += 4) {
-      const float x = d(rng);
-      std::memcpy(&data[i], &x, 4);
-    }
-  }
+  const std::vector<std::uint8_t> data = ambdiag::bench::seeded_samples(n_chunks);
   Conn admin(uri);
   std::printf("%zu chunks of %zu bytes (%.0f MB); PostgreSQL %s (fsync %s, synchronous_commit %s); SQLite file in %s\n",
               n_chunks, kChunkBytes, static_cast<double>(data.size()) / 1e6, admin.exec("SHOW server_version").c_str(),

@@ -9,11 +9,6 @@ namespace ambdiag::storage::detail {
 
 namespace {
 
-struct Migration {
-  int version;
-  const char* sql;
-};
-
 // Append only: a released migration is never edited, a change is a new one.
 // STRICT tables make SQLite refuse values of the wrong type.
 constexpr Migration kMigrations[] = {

@@ -12,40 +12,18 @@
 namespace ambdiag::storage {
 namespace {
 
+using ambdiag::testing::alarm_event;
+using ambdiag::testing::open_alarm;
+
 class HistorianAlarmsTest : public ambdiag::testing::BackendTest {};
 AMBDIAG_ON_BOTH_BACKENDS(HistorianAlarmsTest);
-
-AlarmRecord open_alarm(const std::string& pump, const std::string& rule) {
-  AlarmRecord a;
-  a.pump_id = pump;
-  a.rule = rule;
-  a.severity = "high";
-  a.state = "unack_active";
-  a.active = true;
-  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
-  a.run_id = pump + "/r1";
-  a.message = "raised";
-  a.fault = "balance_piston_wear";
-  a.value = 1.7;
-  return a;
-}
-
-AlarmEvent event(const std::string& kind, const std::string& from, const std::string& to, const std::string& by = "server") {
-  AlarmEvent e;
-  e.kind = kind;
-  e.time = "2026-11-26T10:00:00.000Z";
-  e.from = from;
-  e.to = to;
-  e.by = by;
-  return e;
-}
 
 // Raises `rule` on `pump`: the new alarm and its journal entry.
 std::int64_t raise(Historian& h, const std::string& pump, const std::string& rule) {
   AlarmChanges c;
   c.pump_id = pump;
   c.alarms.push_back(open_alarm(pump, rule));
-  c.events.emplace_back(0, event("raise", "normal", "unack_active"));
+  c.events.emplace_back(0, alarm_event("raise", "normal", "unack_active"));
   c.memories.emplace_back(rule, R"({"window":"1","clear_runs":0})");
   h.apply_alarm_changes(c);
   EXPECT_GT(c.alarms[0].alarm_id, 0);
@@ -73,7 +51,7 @@ TEST_P(HistorianAlarmsTest, OneOpenAlarmPerPumpAndRule) {
   AlarmChanges close;
   close.pump_id = "P-1";
   close.alarms.push_back(a);
-  close.events.emplace_back(0, event("clear", "ack_active", "normal"));
+  close.events.emplace_back(0, alarm_event("clear", "ack_active", "normal"));
   h.apply_alarm_changes(close);
   const auto second = raise(h, "P-1", "detection");
   EXPECT_GT(second, id);
@@ -163,7 +141,7 @@ TEST_P(HistorianAlarmsTest, ExpiredShelvesAreFoundByTime) {
   AlarmChanges c;
   c.pump_id = "P-1";
   c.alarms.push_back(a);
-  c.events.emplace_back(0, event("shelve", "unack_active", "shelved", "ops"));
+  c.events.emplace_back(0, alarm_event("shelve", "unack_active", "shelved", "ops"));
   h.apply_alarm_changes(c);
   EXPECT_TRUE(h.expired_shelves("2026-11-26T10:29:59.999Z").empty());
   ASSERT_EQ(h.expired_shelves("2026-11-26T10:30:00.000Z").size(), 1u);

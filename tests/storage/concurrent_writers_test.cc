@@ -160,22 +160,8 @@ TEST_P(ConcurrentWritersTest, ATokenNameAddedAtOnceIsGivenOnce) {
 AlarmChanges raise_change(const std::string& pump, const std::string& rule) {
   AlarmChanges c;
   c.pump_id = pump;
-  AlarmRecord a;
-  a.pump_id = pump;
-  a.rule = rule;
-  a.severity = "high";
-  a.state = "unack_active";
-  a.active = true;
-  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
-  a.message = "raised";
-  c.alarms.push_back(a);
-  AlarmEvent e;
-  e.kind = "raise";
-  e.time = a.raised_at;
-  e.from = "normal";
-  e.to = "unack_active";
-  e.by = "server";
-  c.events.emplace_back(0, e);
+  c.alarms.push_back(ambdiag::testing::open_alarm(pump, rule));
+  c.events.emplace_back(0, ambdiag::testing::alarm_event("raise", "normal", "unack_active"));
   return c;
 }
 

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ambdiag/core/checksum.h"
+#include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
 #include "pg_cluster.h"
 #include "sqlite_raw.h"
@@ -45,6 +46,45 @@ class BackendTest : public ::testing::TestWithParam<Backend> {
  private:
   std::string location_;
 };
+
+// An alarm of `rule` raised on `pump` (unack_active), as the engine writes one.
+inline storage::AlarmRecord open_alarm(const std::string& pump, const std::string& rule) {
+  storage::AlarmRecord a;
+  a.pump_id = pump;
+  a.rule = rule;
+  a.severity = "high";
+  a.state = "unack_active";
+  a.active = true;
+  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
+  a.run_id = pump + "/r1";
+  a.message = "raised";
+  a.fault = "balance_piston_wear";
+  a.value = 1.7;
+  return a;
+}
+
+// A journal entry of an alarm's transition.
+inline storage::AlarmEvent alarm_event(const std::string& kind, const std::string& from, const std::string& to,
+                                       const std::string& by = "server") {
+  storage::AlarmEvent e;
+  e.kind = kind;
+  e.time = "2026-11-26T10:00:00.000Z";
+  e.from = from;
+  e.to = to;
+  e.by = by;
+  return e;
+}
+
+// The message of the InputError `f` throws ("" if none).
+template <class F>
+std::string input_error_of(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
 
 // SQL run on the historian's database behind its back, on either backend:
 // the first column of the first row as an integer (-1 without a row).
@@ -130,6 +170,7 @@ inline std::string as_string(std::span<const std::uint8_t> b) {
 }  // namespace ambdiag::testing
 
 namespace ambdiag::storage {
+using ::ambdiag::testing::input_error_of;
 using ::ambdiag::testing::raw_error;
 using ::ambdiag::testing::raw_int;
 }  // namespace ambdiag::storage

@@ -35,15 +35,6 @@ class PostgresTest : public ::testing::Test {
   std::string location_;
 };
 
-std::string input_error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(PostgresLocation, URIsSelectPostgresAndPasswordsAreMasked) {
   EXPECT_TRUE(is_postgres_location("postgresql://u@h/db"));
   EXPECT_TRUE(is_postgres_location("postgres:///db?host=/tmp"));

@@ -85,17 +85,6 @@ TEST_P(HistorianModelsTest, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused
   EXPECT_EQ(h.list_models("P-1").size(), 1u);
 }
 
-// The message of the InputError `f` throws ("" if none).
-template <class F>
-std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST_P(HistorianReferencesTest, OnlyCompleteIdentificationRunsOfThePumpEachOnce) {
   auto h = Historian::open(location());
   store_run(h, identification_json_text("P-1/a", "P-1"), RunStatus::complete);

@@ -17,15 +17,11 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
+#include "schema.h"
 
 namespace ambdiag::storage::detail {
 
 namespace {
-
-struct Migration {
-  int version;
-  const char* sql;
-};
 
 // Append only, as schema.cc.
 constexpr Migration kPgMigrations[] = {
