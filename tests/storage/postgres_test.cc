@@ -145,6 +145,8 @@ TEST_F(PostgresTest, EveryCommitIsDurableAtOnceAndTheListenerHearsOfIt) {
     batch.commit();  // one commit for the batch
   }
   EXPECT_EQ(heard, (std::vector<std::uint64_t>{start + 1, start + 2}));
+  h.read_samples("P-7/a");  // a read transaction commits nothing
+  EXPECT_EQ(h.commit_generation(), start + 2);
   h.on_durable(nullptr);
   EXPECT_EQ(h.checkpoint_stats().durable_generation, start + 2);
 }

@@ -2,7 +2,7 @@
 
 namespace ambdiag::storage::detail {
 
-Transaction::Transaction(Connection& db, Kind kind) : db_(&db) {
+Transaction::Transaction(Connection& db, Kind kind) : db_(&db), kind_(kind) {
   if (db.in_transaction()) {
     if (kind == Kind::read) return;  // joins the outer one
     db.exec("SAVEPOINT ambdiag_nested", "savepoint");
@@ -28,7 +28,7 @@ void Transaction::commit() {
   if (!owns_) return;
   db_->exec(savepoint_ ? "RELEASE ambdiag_nested" : "COMMIT", "commit");
   owns_ = false;
-  if (!savepoint_) db_->committed();
+  if (!savepoint_ && kind_ == Kind::write) db_->committed();
 }
 
 }  // namespace ambdiag::storage::detail

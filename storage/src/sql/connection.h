@@ -105,7 +105,7 @@ class Connection {
   virtual const char* begin_sql(TxKind kind) const = 0;
   // No throw: after an error the database may have rolled back already.
   virtual void exec_quietly(const char* sql) noexcept = 0;
-  // Called after the outermost transaction committed: the commit
+  // Called after the outermost write transaction committed: the commit
   // listener's turn (PostgreSQL's durability tracker; SQLite's is its WAL hook).
   void committed() {
     if (on_commit_) on_commit_();
@@ -128,13 +128,16 @@ class Transaction {
  public:
   using Kind = Connection::TxKind;
   Transaction(Connection& db, Kind kind);
-  Transaction(Transaction&& o) noexcept : db_(o.db_), owns_(o.owns_), savepoint_(o.savepoint_) { o.owns_ = false; }
+  Transaction(Transaction&& o) noexcept : db_(o.db_), kind_(o.kind_), owns_(o.owns_), savepoint_(o.savepoint_) {
+    o.owns_ = false;
+  }
   Transaction& operator=(Transaction&&) = delete;
   ~Transaction();
   void commit();
 
  private:
   Connection* db_;
+  Kind kind_;
   bool owns_ = false;
   bool savepoint_ = false;
 };
