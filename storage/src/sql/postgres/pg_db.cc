@@ -49,6 +49,12 @@ void ignore_notice(void*, const char*) {}
 
 const char kEmpty[1] = {0};  // a non-null pointer for an empty value (nullptr is NULL)
 
+// libpq's messages end with a newline.
+std::string trimmed(std::string msg) {
+  while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
+  return msg;
+}
+
 }  // namespace
 
 std::string numbered_placeholders(std::string_view sql) {
@@ -87,9 +93,7 @@ std::unique_ptr<PgDb> PgDb::open(const std::string& uri, bool read_only) {
   std::unique_ptr<PgDb> db(new PgDb(conn, uri, read_only));  // owns conn even when it failed
   if (!conn) throw StorageError(db->display_ + ": cannot connect: out of memory");
   if (PQstatus(conn) != CONNECTION_OK) {
-    std::string msg = PQerrorMessage(conn);
-    while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
-    throw InputError(db->display_ + ": cannot connect to PostgreSQL: " + msg);
+    throw InputError(db->display_ + ": cannot connect to PostgreSQL: " + trimmed(PQerrorMessage(conn)));
   }
   db->configure();
   return db;
@@ -131,9 +135,18 @@ void PgDb::track_transaction(const char* sql) {
   if (std::strcmp(sql, "COMMIT") == 0 || std::strcmp(sql, "ROLLBACK") == 0) in_tx_ = false;
 }
 
+bool PgDb::lost_outside_transaction(bool was_in_transaction) const {
+  return !was_in_transaction && PQstatus(conn_) == CONNECTION_BAD;
+}
+
 void PgDb::exec(const char* sql, const char* what) {
   ensure_connected();
+  const bool was_in_tx = in_tx_;
   PgResult r(PQexec(conn_, sql));
+  if (lost_outside_transaction(was_in_tx)) {  // e.g. BEGIN on a connection the server ended: once more
+    ensure_connected();
+    r.reset(PQexec(conn_, sql));
+  }
   track_transaction(sql);  // a failed COMMIT ends the transaction too
   check(r.get(), what);
   // COMMIT of a transaction that had an error rolls back and says so only here.
@@ -152,8 +165,7 @@ void PgDb::check(const PGresult* r, const char* what) const {
   if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK || st == PGRES_SINGLE_TUPLE || st == PGRES_EMPTY_QUERY) return;
   const char* state = r ? PQresultErrorField(r, PG_DIAG_SQLSTATE) : nullptr;
   const char* primary = r ? PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY) : nullptr;
-  std::string msg = primary ? primary : PQerrorMessage(conn_);
-  while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
+  std::string msg = trimmed(primary ? primary : PQerrorMessage(conn_));
   if (state) msg += std::string(" (SQLSTATE ") + state + ")";
   // Text PostgreSQL cannot hold (bytes that are not UTF-8, a NUL): the
   // value is what is wrong, as for any other bad input.
@@ -163,9 +175,7 @@ void PgDb::check(const PGresult* r, const char* what) const {
 }
 
 void PgDb::fail(const char* what, const std::string& detail) const {
-  std::string d = detail;
-  while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
-  throw StorageError(display_ + ": " + what + ": " + d);
+  throw StorageError(display_ + ": " + what + ": " + trimmed(detail));
 }
 
 std::unique_ptr<Stmt> PgDb::prepare(const char* sql, Fetch fetch) { return std::make_unique<PgStmt>(*this, sql, fetch); }
@@ -290,7 +300,13 @@ void PgStmt::execute() {
   const Args a = args();
   const int n = static_cast<int>(params_.size());
   if (fetch_ == Fetch::all) {
+    const bool was_in_tx = db_.in_transaction();
     result_.reset(PQexecPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1));
+    if (db_.lost_outside_transaction(was_in_tx)) {  // a read on a connection the server ended: once more
+      db_.ensure_connected();
+      prepare_on_server();
+      result_.reset(PQexecPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1));
+    }
     db_.check(result_.get(), "statement");
     db_.set_changes(std::atoll(PQcmdTuples(result_.get())));
     return;

@@ -7,7 +7,8 @@
 // that a bound value is sent in the parameter's own type: int8, float8 and
 // bytea in binary, text as its bytes). Results come back in binary and are
 // decoded by column type. A lost connection is re-opened at the next
-// statement outside a transaction; statements then prepare again.
+// statement outside a transaction, which is tried again once on it
+// (statements then prepare again); inside a transaction the call fails.
 #pragma once
 
 #include <libpq-fe.h>
@@ -62,6 +63,10 @@ class PgDb final : public Connection {
   // reconnect, which forgets the prepared statements), a fresh statement
   // name, and whether a Fetch::one_by_one statement is reading rows.
   void ensure_connected();
+  // After a call: the connection was lost and no transaction was open
+  // before it, so the call may be made again on a new connection (outside
+  // a transaction the historian only reads, or begins one).
+  bool lost_outside_transaction(bool was_in_transaction) const;
   std::uint64_t generation() const { return generation_; }
   std::string next_statement_name() { return "ambdiag_" + std::to_string(++statements_); }
   void set_changes(std::int64_t n) { changes_ = n; }
