@@ -50,9 +50,10 @@ std::filesystem::path shared_pg_cluster_dir();
 
 // For a test of the PostgreSQL backend: a fresh schema in the process'
 // cluster (the shared one, or one started on first use and stopped at the
-// end of the test program), as a historian location. Fails the test with a
-// message when PostgreSQL is not installed. AMBDIAG_NO_POSTGRES=1 in the
-// environment: nullopt (the caller skips the test, saying so).
+// end of the test program), as a historian location. Throws, so the test
+// fails with the message, when PostgreSQL is not installed.
+// AMBDIAG_NO_POSTGRES=1 in the environment: nullopt (the caller skips the
+// test, saying so).
 std::optional<std::string> postgres_test_location();
 // The process' cluster (started or attached on first use); nullptr like
 // postgres_test_location.
