@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -19,11 +20,13 @@
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/events.h"
 #include "ambdiag/server/ingest.h"
+#include "ambdiag/server/ingest_group.h"
 #include "ambdiag/server/metrics.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
+#include "serve_ingest_group.h"
 
 namespace ambdiag::cli {
 
@@ -58,12 +61,12 @@ nlohmann::json read_alarm_defaults(const std::string& path) {
 }
 
 int run_serve(const std::vector<std::string>& argv) {
-  const Args args(argv,
-                  {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
-                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
-                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
-                   "--web-dir"},
-                  {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
+  std::set<std::string> options = {"--db", "--http-port", "--domain", "--agent-timeout", "--bench-commit-delay-ms",
+                                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
+                                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within",
+                                   "--speak-protocol", "--web-dir"};
+  options.insert(std::begin(kIngestGroupOptionNames), std::end(kIngestGroupOptionNames));
+  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -71,12 +74,12 @@ int run_serve(const std::vector<std::string>& argv) {
   const int http_port = integer_in(args, "--http-port", 0, 65535, 0);
   server::IngestOptions opt;
   opt.domain = integer_in(args, "--domain", 0, 232, 0);
-  // The site and its pumps' own partitions (SITE/PUMP, docs/streaming.md "Security").
-  if (const auto p = args.option("--partition")) opt.partitions = {*p, *p + "/*"};
+  opt.partitions = ingest_partitions(args);
   opt.agent_timeout = std::chrono::milliseconds(
       static_cast<long>(1000.0 * args.number("--agent-timeout").value_or(10.0)));
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
   opt.verbose = !args.flag("--quiet");
+  const server::IngestGroupOptions group_opt = ingest_group_options(args, opt.verbose);
   opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
 
   storage::CheckpointOptions ckpt;
@@ -112,13 +115,13 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
 
-  // One server per historian file: two would both ingest and both analyse.
-  // A PostgreSQL database has no file to lock; its writers take the locks
-  // each write needs (docs/storage.md, "PostgreSQL").
+  // One analysing server per historian file: two would requeue each other's
+  // running jobs at start. Ingest is shared by ingest groups (docs/streaming.md).
+  // A PostgreSQL database has no file to lock (docs/storage.md, "PostgreSQL").
   std::optional<ProcessLock> lock;
-  if (!storage::is_postgres_location(*db))
+  if (aopt.workers > 0 && !storage::is_postgres_location(*db))
     lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
-                 "; one server per historian file (several servers share a PostgreSQL database)");
+                 "; one analysing server per historian file (more servers: --workers 0, ingest groups)");
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs; the
   // checkpoints also say which commits are durable (docs/storage.md).
@@ -135,8 +138,11 @@ int run_serve(const std::vector<std::string>& argv) {
     analysis.emplace(aopt);
     opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
   }
-  server::Ingest ingest(historian, opt);
+  // Several servers may name one ingest group: one ingests, the others stand by.
+  server::IngestGroup ingest_group(historian, opt, group_opt);
+  const server::Ingest& ingest = ingest_group.ingest();
   server::register_ingest_metrics(metrics, ingest);
+  server::register_ingest_group_metrics(metrics, ingest_group);
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
@@ -155,9 +161,10 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
-  rest_opt.health_extra = [&ingest, &historian, &analysis] {
+  rest_opt.health_extra = [&ingest, &ingest_group, &historian, &analysis] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"ingest", ingest.health()},
+                          {"ingest_groups", nlohmann::json::array({ingest_group.health()})},
                           {"jobs", analysis ? analysis->counters() : nlohmann::json(nullptr)},
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
@@ -170,14 +177,14 @@ int run_serve(const std::vector<std::string>& argv) {
   };
   server::RestServer rest(rest_opt);
   const int bound_port = rest.start();
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n",
-               storage::display_location(*db).c_str(),
-               opt.domain, opt.partitions.front().c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
+  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, ingest group %s (partitions %s), REST on port %d%s\n",
+               storage::display_location(*db).c_str(), opt.domain, group_opt.group.c_str(),
+               ingest_group.status().partitions.c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
   if (!rest_opt.web_dir.empty())
     std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
                  bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
-  std::thread ingest_thread([&] { ingest.run(g_stop); });
+  std::thread ingest_thread([&] { ingest_group.run(g_stop); });
 
   // Progress on stderr every 5 s while something changes.
   int64_t last_blocks = 0, last_rejected = 0;
@@ -222,6 +229,7 @@ std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
+           "                     [--ingest-group NAME] [--ingest-partitions P,...] [--ingest-lease S] [--instance NAME]\n"
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
@@ -235,9 +243,13 @@ std::vector<Command> serve_commands() {
            "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-5), diagnosis.\n"
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
-           "requests without one read as viewer. One server per historian file (FILE.lock).\n"
+           "requests without one read as viewer. One analysing server (--workers > 0) per historian file (FILE.lock).\n"
            "FILE may be a PostgreSQL database instead: --db postgresql://USER@HOST/DB (a libpq URI;\n"
            "  docs/storage.md \"PostgreSQL\"), created there at the first start.\n"
+           "--ingest-group NAME (default: default): servers naming one group on one database ingest its partitions\n"
+           "  (--partition SITE: SITE,SITE/*; or --ingest-partitions P1,P2 of DDS partition names or patterns; default *)\n"
+           "  one at a time: the holder renews a lease of S seconds (--ingest-lease, default 3), a standby takes over\n"
+           "  when it lapses; --instance NAME names this server in the lease (default HOST:PID; docs/streaming.md).\n"
            "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"

@@ -11,6 +11,7 @@
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/events.h"
 #include "ambdiag/server/metrics.h"
+#include "http_compress.h"
 #include "rate_limit.h"
 #include "reader_pool.h"
 #include "rest_tls.h"
@@ -147,6 +148,7 @@ struct RestServer::Impl {
     } catch (...) {
       send_exception(res, std::current_exception());
     }
+    detail::gzip_reply(req, res);  // not httplib's brotli: seconds for a megabyte (http_compress.h)
     count(req.method, route, res.status == -1 ? 200 : res.status, t0);  // httplib's default: 200
   }
 

@@ -336,6 +336,27 @@ CREATE TABLE alarm_cursors (
   last_valid_at      TEXT
 ) STRICT;
 )sql"},
+    // v7: ingest groups (docs/streaming.md "Several servers: ingest groups and
+    // failover"). One row per group: the DDS partitions it covers, the
+    // process holding it, the fencing epoch (+1 at each new holder; every
+    // ingest commit checks it in its own transaction) and a renewal count
+    // standbys watch: a holder that stops renewing for its lease is taken
+    // over. Times are the holder's clock, for people only: no standby
+    // compares clocks. Plain SQL, the same on PostgreSQL.
+    {7, R"sql(
+CREATE TABLE ingest_leases (
+  ingest_group  TEXT PRIMARY KEY CHECK (ingest_group <> ''),
+  partitions    TEXT NOT NULL CHECK (partitions <> ''),
+  holder        TEXT NOT NULL DEFAULT '',
+  epoch         INTEGER NOT NULL DEFAULT 0 CHECK (epoch >= 0),
+  renewals      INTEGER NOT NULL DEFAULT 0 CHECK (renewals >= 0),
+  lease_ms      INTEGER NOT NULL CHECK (lease_ms > 0),
+  acquired_at   TEXT,
+  renewed_at    TEXT,
+  expires_at    TEXT,
+  created_at    TEXT NOT NULL
+) STRICT;
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

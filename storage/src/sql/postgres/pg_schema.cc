@@ -1,6 +1,7 @@
 // The historian's schema in PostgreSQL. SQLite's migrations (schema.cc)
 // are the history of files since version 1; a PostgreSQL database is
-// created directly at the version it starts at (6) and from then on
+// created directly at the version it starts at (6, then the later
+// migrations) and from then on
 // migrated like a file: a change to the schema is a new entry here AND in
 // schema.cc, with the same number (docs/storage.md, "Adding a migration").
 //
@@ -303,6 +304,23 @@ CREATE TABLE alarm_cursors (
   model_version      bigint NOT NULL,
   reference_version  bigint NOT NULL,
   last_valid_at      text COLLATE "C"
+);
+)sql"},
+    // v7: ingest groups' leases (SQLite's v7, ingest_lease.h). The lease's
+    // compare-and-set UPDATEs need nothing more here: the row lock of one
+    // makes another wait and then re-check its WHERE on the new row.
+    {7, R"sql(
+CREATE TABLE ingest_leases (
+  ingest_group  text COLLATE "C" PRIMARY KEY CHECK (ingest_group <> ''),
+  partitions    text COLLATE "C" NOT NULL CHECK (partitions <> ''),
+  holder        text COLLATE "C" NOT NULL DEFAULT '',
+  epoch         bigint NOT NULL DEFAULT 0 CHECK (epoch >= 0),
+  renewals      bigint NOT NULL DEFAULT 0 CHECK (renewals >= 0),
+  lease_ms      bigint NOT NULL CHECK (lease_ms > 0),
+  acquired_at   text COLLATE "C",
+  renewed_at    text COLLATE "C",
+  expires_at    text COLLATE "C",
+  created_at    text COLLATE "C" NOT NULL
 );
 )sql"},
 };
