@@ -3,6 +3,7 @@
 #pragma once
 
 #include <bit>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -20,6 +21,8 @@ using detail::Stmt;
 using detail::Transaction;
 
 std::string now_utc();  // server clock, ISO 8601 UTC with milliseconds
+// The same format for another time (e.g. a lease's end): text order is time order.
+std::string utc_ms(std::chrono::system_clock::time_point t);
 std::string hex64(std::uint64_t v);
 RunStatus status_from_text(const std::string& s);
 inline std::string quoted(const std::string& id) { return "'" + id + "'"; }

@@ -42,6 +42,11 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Undoes migration 7 (job leases, the events table).
+inline constexpr const char* kUndoLeasesEventsV7Sql =
+    "DROP TABLE events; DELETE FROM sqlite_sequence WHERE name = 'events'; DROP INDEX jobs_running_by_lease; "
+    "ALTER TABLE jobs DROP COLUMN lease_expires_at;";
+
 // Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
 // for the tests that take a file back to an older schema version.
 inline constexpr const char* kUndoAlarmsV6Sql =
@@ -64,6 +69,7 @@ inline constexpr const char* kUndoServiceV4Sql =
 // A file of the current schema taken back to what migration `version`
 // (3 or 4) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
+  raw_exec(path, kUndoLeasesEventsV7Sql);
   raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path, kUndoTrendsV5Sql);
   if (version < 4) raw_exec(path, kUndoServiceV4Sql);
