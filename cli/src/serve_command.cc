@@ -17,13 +17,13 @@
 #include "ambdiag/core/process_lock.h"
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/analysis_service.h"
-#include "ambdiag/server/events.h"
 #include "ambdiag/server/ingest.h"
 #include "ambdiag/server/metrics.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
+#include "serve_parts.h"
 
 namespace ambdiag::cli {
 
@@ -62,12 +62,22 @@ int run_serve(const std::vector<std::string>& argv) {
                   {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
                    "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
-                   "--web-dir"},
+                   "--web-dir", "--parts", "--instance", "--job-lease"},
                   {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
-  if (!args.option("--http-port")) throw UsageError("missing --http-port N");
+  // The parts this process runs (docs/service.md "Several servers"): an
+  // option of a part it does not run is a mistake, not something to ignore.
+  const ServeParts parts = parse_serve_parts(args.option("--parts").value_or("ingest,analysis,rest"));
+  const std::string instance = serve_instance_name(args.option("--instance").value_or(""));
+  const auto not_run = [&](const char* option, const char* part) {
+    if (args.option(option))
+      throw UsageError(std::string(option) + ": this process runs no " + part + " (--parts " + parts.text() + ")");
+  };
+  if (!parts.rest) not_run("--http-port", "rest");
+  if (!parts.analysis) not_run("--workers", "analysis");
+  if (parts.rest && !args.option("--http-port")) throw UsageError("missing --http-port N");
   const int http_port = integer_in(args, "--http-port", 0, 65535, 0);
   server::IngestOptions opt;
   opt.domain = integer_in(args, "--domain", 0, 232, 0);
@@ -98,7 +108,11 @@ int run_serve(const std::vector<std::string>& argv) {
 
   server::AnalysisOptions aopt;
   aopt.db_path = *db;
-  aopt.workers = integer_in(args, "--workers", 0, 64, 2);
+  aopt.workers = parts.analysis ? integer_in(args, "--workers", 0, 64, 2) : 0;
+  aopt.instance = instance;
+  const double lease_s = args.number("--job-lease").value_or(10.0);
+  if (!(lease_s >= 0.5 && lease_s <= 3600)) throw UsageError("--job-lease: must be seconds in 0.5..3600");
+  aopt.job_lease = std::chrono::milliseconds(static_cast<long>(1000 * lease_s));
   aopt.proposed_reference_runs = integer_in(args, "--reference-runs", 1, 100, 3);
   aopt.alpha = args.number("--alpha").value_or(aopt.alpha);
   if (!(aopt.alpha > 0 && aopt.alpha < 0.5)) throw UsageError("--alpha: must be in (0, 0.5)");
@@ -112,27 +126,39 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
 
-  // One server per historian file: two would both ingest and both analyse.
-  const ProcessLock lock(*db + ".lock", "historian " + *db, "ambdiag serve",
-                         "; one server per historian file (several servers share a PostgreSQL database)");
-  storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
-  // Commits (and so acks) never wait for a checkpoint's fsyncs; the
-  // checkpoints also say which commits are durable (docs/storage.md).
-  historian.checkpoint_in_background(ckpt);
-  // What ingest, the analysis and REST publish into (GET /metrics, GET
-  // /api/v1/events); declared first, so they outlive all three.
-  server::MetricsRegistry metrics;
-  server::EventBus events;
-  opt.events = &events;
-  aopt.events = &events;
-  aopt.metrics = &metrics;
-  std::optional<server::AnalysisService> analysis;
-  if (aopt.workers > 0) {
-    analysis.emplace(aopt);
-    opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
+  // One ingest per historian file: two would both take the same runs.
+  // Analysis and REST processes share the file (jobs have leases).
+  std::optional<ProcessLock> lock;
+  std::optional<storage::Historian> historian;
+  if (parts.ingest) {
+    lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
+                 "; one ingest per historian file (other processes may run --parts analysis,rest on it)");
+    historian.emplace(storage::Historian::open(*db, storage::Historian::Mode::write));
+    // Commits (and so acks) never wait for a checkpoint's fsyncs; the
+    // checkpoints also say which commits are durable (docs/storage.md).
+    historian->checkpoint_in_background(ckpt);
   }
-  server::Ingest ingest(historian, opt);
-  server::register_ingest_metrics(metrics, ingest);
+  // What ingest, the analysis and REST count into (GET /metrics); declared
+  // first, so it outlives all three.
+  server::MetricsRegistry metrics;
+  metrics.gauge("ambdiag_instance_info", "This process' instance name and the parts it runs (value 1).",
+                {"instance", "parts"})
+      .with({instance, parts.text()})
+      .set(1);
+  aopt.metrics = &metrics;
+  // REST writes and queueing need the service; its workers only run with the analysis part.
+  std::optional<server::AnalysisService> analysis;
+  if (parts.analysis || parts.rest) analysis.emplace(aopt);
+  // A run's analysis job is queued in the commit that makes it complete,
+  // wherever the analysis runs; a worker of this process is woken after it.
+  opt.in_commit_run_complete = [](storage::Historian& h, const std::string& run_id) { server::queue_run_analysis(h, run_id); };
+  if (analysis && aopt.workers > 0)
+    opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
+  std::optional<server::Ingest> ingest;
+  if (parts.ingest) {
+    ingest.emplace(*historian, opt);
+    server::register_ingest_metrics(metrics, *ingest);
+  }
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
@@ -144,35 +170,48 @@ int run_serve(const std::vector<std::string>& argv) {
     throw UsageError("--tls-cert and --tls-key go together (HTTPS needs both)");
   rest_opt.proposed_reference_runs = aopt.proposed_reference_runs;
   rest_opt.metrics = &metrics;
-  rest_opt.events = &events;
   rest_opt.rate_limit_per_s = rate;
   rest_opt.rate_limit_burst = burst;
   // The UI's files: --web-dir, else next to the binary (build tree or install).
   rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
-  rest_opt.health_extra = [&ingest, &historian, &analysis] {
-    const auto ck = historian.checkpoint_stats();
-    return nlohmann::json{{"ingest", ingest.health()},
-                          {"jobs", analysis ? analysis->counters() : nlohmann::json(nullptr)},
-                          {"checkpoints", {{"background", ck.background},
-                                           {"by_writer", ck.inline_by_writer},
-                                           {"pages_copied", ck.pages_copied},
-                                           {"time_triggered", ck.time_triggered},
-                                           {"commit_generation", ck.commit_generation},
-                                           {"durable_generation", ck.durable_generation},
-                                           {"errors", ck.errors},
-                                           {"last_error", ck.last_error}}}};
+  rest_opt.health_extra = [&ingest, &historian, &analysis, &parts, &instance] {
+    nlohmann::json ck = nullptr;
+    if (historian) {
+      const auto c = historian->checkpoint_stats();
+      ck = {{"background", c.background},
+            {"by_writer", c.inline_by_writer},
+            {"pages_copied", c.pages_copied},
+            {"time_triggered", c.time_triggered},
+            {"commit_generation", c.commit_generation},
+            {"durable_generation", c.durable_generation},
+            {"errors", c.errors},
+            {"last_error", c.last_error}};
+    }
+    return nlohmann::json{{"instance", instance},
+                          {"parts", parts.names()},
+                          {"ingest", ingest ? ingest->health() : nlohmann::json(nullptr)},
+                          {"jobs", analysis && parts.analysis ? analysis->counters() : nlohmann::json(nullptr)},
+                          {"checkpoints", ck}};
   };
-  server::RestServer rest(rest_opt);
-  const int bound_port = rest.start();
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, partition %s, REST on port %d%s\n", db->c_str(),
-               opt.domain, opt.partitions.front().c_str(), bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
-  if (!rest_opt.web_dir.empty())
+  std::optional<server::RestServer> rest;
+  int bound_port = 0;
+  if (parts.rest) {
+    rest.emplace(rest_opt);
+    bound_port = rest->start();
+  }
+  std::fprintf(stderr, "ambdiag serve: instance %s, parts %s, historian %s", instance.c_str(), parts.text().c_str(), db->c_str());
+  if (parts.ingest) std::fprintf(stderr, ", DDS domain %d, partition %s", opt.domain, opt.partitions.front().c_str());
+  if (parts.rest) std::fprintf(stderr, ", REST on port %d%s", bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
+  std::fprintf(stderr, "\n");
+  if (parts.rest && !rest_opt.web_dir.empty())
     std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
                  bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
-  std::thread ingest_thread([&] { ingest.run(g_stop); });
+  std::thread ingest_thread([&] {
+    if (ingest) ingest->run(g_stop);
+  });
 
   // Progress on stderr every 5 s while something changes.
   int64_t last_blocks = 0, last_rejected = 0;
@@ -182,7 +221,8 @@ int run_serve(const std::vector<std::string>& argv) {
     const auto now = std::chrono::steady_clock::now();
     if (now < next_report) continue;
     next_report = now + std::chrono::seconds(5);
-    const auto& c = ingest.counters();
+    if (!ingest) continue;
+    const auto& c = ingest->counters();
     if (c.blocks_stored == last_blocks && c.rejected_total() == last_rejected) continue;
     last_blocks = c.blocks_stored;
     last_rejected = c.rejected_total();
@@ -193,10 +233,14 @@ int run_serve(const std::vector<std::string>& argv) {
   }
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
-  rest.stop();
+  if (rest) rest->stop();
   if (analysis) analysis->stop();
-  const auto& c = ingest.counters();
-  const auto h = ingest.health();
+  if (!ingest) {
+    std::fprintf(stderr, "ambdiag serve: stopped\n");
+    return kExitOk;
+  }
+  const auto& c = ingest->counters();
+  const auto h = ingest->health();
   std::fprintf(stderr,
                "ambdiag serve: stopped (%lld blocks, %lld bytes committed; %.3f s from the first block received to "
                "the last commit; queue peak %lld bytes; %lld blocks received, %lld duplicates, %lld before their "
@@ -220,6 +264,7 @@ std::vector<Command> serve_commands() {
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
+           "                     [--parts ingest,analysis,rest] [--instance NAME] [--job-lease S]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -230,7 +275,7 @@ std::vector<Command> serve_commands() {
            "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-5), diagnosis.\n"
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
-           "requests without one read as viewer. One server per historian file (FILE.lock).\n"
+           "requests without one read as viewer. One ingest per historian file (FILE.lock).\n"
            "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
@@ -240,6 +285,12 @@ std::vector<Command> serve_commands() {
            "docs/service.md \"Alarms\"), checked at the start.\n"
            "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
            "  ../share/ambdiag/web next to this binary; web/README.md).\n"
+           "--parts LIST: what this process runs, any of ingest, analysis, rest (default all three); several\n"
+           "  processes may share FILE: one with ingest (FILE.lock), any number with analysis or rest. Without\n"
+           "  rest no port is opened (--http-port refused); without analysis no job runs here (--workers refused).\n"
+           "--instance NAME: this process' name in health, metrics and its jobs' `worker` (default HOST:PID).\n"
+           "--job-lease S: a claimed job is held S seconds (default 10) and renewed every S/3; a job whose\n"
+           "  worker died or stalled is queued again by any analysis process once its lease expired.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"
