@@ -129,15 +129,13 @@ int run_serve(const std::vector<std::string>& argv) {
   // One ingest per historian file: two would both take the same runs.
   // Analysis and REST processes share the file (jobs have leases).
   std::optional<ProcessLock> lock;
-  std::optional<storage::Historian> historian;
-  if (parts.ingest) {
+  if (parts.ingest)
     lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
                  "; one ingest per historian file (other processes may run --parts analysis,rest on it)");
-    historian.emplace(storage::Historian::open(*db, storage::Historian::Mode::write));
-    // Commits (and so acks) never wait for a checkpoint's fsyncs; the
-    // checkpoints also say which commits are durable (docs/storage.md).
-    historian->checkpoint_in_background(ckpt);
-  }
+  storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
+  // Commits (and so acks) never wait for a checkpoint's fsyncs; the
+  // checkpoints also say which commits are durable (docs/storage.md).
+  if (parts.ingest) historian.checkpoint_in_background(ckpt);
   // What ingest, the analysis and REST count into (GET /metrics); declared
   // first, so it outlives all three.
   server::MetricsRegistry metrics;
@@ -156,7 +154,7 @@ int run_serve(const std::vector<std::string>& argv) {
     opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
   std::optional<server::Ingest> ingest;
   if (parts.ingest) {
-    ingest.emplace(*historian, opt);
+    ingest.emplace(historian, opt);
     server::register_ingest_metrics(metrics, *ingest);
   }
   server::RestOptions rest_opt;
@@ -177,23 +175,19 @@ int run_serve(const std::vector<std::string>& argv) {
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
   rest_opt.health_extra = [&ingest, &historian, &analysis, &parts, &instance] {
-    nlohmann::json ck = nullptr;
-    if (historian) {
-      const auto c = historian->checkpoint_stats();
-      ck = {{"background", c.background},
-            {"by_writer", c.inline_by_writer},
-            {"pages_copied", c.pages_copied},
-            {"time_triggered", c.time_triggered},
-            {"commit_generation", c.commit_generation},
-            {"durable_generation", c.durable_generation},
-            {"errors", c.errors},
-            {"last_error", c.last_error}};
-    }
+    const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"instance", instance},
                           {"parts", parts.names()},
                           {"ingest", ingest ? ingest->health() : nlohmann::json(nullptr)},
                           {"jobs", analysis && parts.analysis ? analysis->counters() : nlohmann::json(nullptr)},
-                          {"checkpoints", ck}};
+                          {"checkpoints", {{"background", ck.background},
+                                           {"by_writer", ck.inline_by_writer},
+                                           {"pages_copied", ck.pages_copied},
+                                           {"time_triggered", ck.time_triggered},
+                                           {"commit_generation", ck.commit_generation},
+                                           {"durable_generation", ck.durable_generation},
+                                           {"errors", ck.errors},
+                                           {"last_error", ck.last_error}}}};
   };
   std::optional<server::RestServer> rest;
   int bound_port = 0;
