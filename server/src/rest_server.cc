@@ -106,19 +106,7 @@ struct RestServer::Impl {
     register_metrics();
     // A client that reconnects with an id older than the ring gets the
     // events after it from the table, on any server.
-    if (tail)
-      events.set_history([this](std::uint64_t after, std::size_t max) -> std::optional<std::vector<Event>> {
-        auto h = pool.acquire();
-        auto snap = h->snapshot();
-        const auto first = h->first_event_seq();
-        const auto after_seq = static_cast<std::int64_t>(after);
-        if (after_seq > h->last_event_seq() || (first && after_seq + 1 < *first) || (!first && after_seq < h->last_event_seq()))
-          return std::nullopt;  // not one of this table's ids, or events after it pruned
-        std::vector<Event> out;
-        for (const auto& e : h->events_after(after_seq, static_cast<int>(std::min<std::size_t>(max, 1u << 30))))
-          out.push_back(detail::to_event(e));
-        return out;
-      });
+    if (tail) events.set_history(detail::events_table_history(pool));
   }
 
   ~Impl() {

@@ -63,5 +63,28 @@ TEST(EventTail, WakePollsAtOnce) {
   EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
 }
 
+// Reconnecting with an id older than the ring: the events after it come
+// from the table, until they are pruned (then a reload).
+TEST(EventTail, AReconnectOlderThanTheRingIsServedFromTheTable) {
+  const auto path = (ambdiag::testing::scratch_dir() / "h.db").string();
+  auto writer = Historian::open(path);
+  std::vector<std::int64_t> seqs;
+  for (int i = 0; i < 6; ++i) seqs.push_back(writer.append_event("run.new", "P-1", "{\"n\":" + std::to_string(i) + "}"));
+  EventBus bus(2);  // a ring of two
+  ReaderPool pool(path, 2);
+  bus.set_history(events_table_history(pool));
+  EventTail tail(path, bus, 20ms);
+  tail.start(2);
+  auto old = bus.subscribe(seqs.front());  // saw the first: the next four from the table, the last from the ring
+  const auto got = old->wait(1s);
+  ASSERT_EQ(got.size(), 5u);
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].id, static_cast<std::uint64_t>(seqs[i + 1]));
+  EXPECT_EQ(got.front().data, "{\"n\":1}");
+  EXPECT_EQ(bus.subscribe(seqs.back() + 1000)->wait(1s).at(0).type, "reload");  // beyond the sequence
+  writer.prune_events(1, "2000-01-01T00:00:00.000Z");  // only the newest is left
+  EXPECT_EQ(bus.subscribe(seqs.front())->wait(1s).at(0).type, "reload");
+  EXPECT_EQ(bus.subscribe(seqs[4])->wait(1s).at(0).id, static_cast<std::uint64_t>(seqs[5]));  // the ring still holds it
+}
+
 }  // namespace
 }  // namespace ambdiag::server::detail

@@ -174,10 +174,6 @@ std::string sse_frame(const Event& e) {
   return "id: " + std::to_string(e.id) + "\nevent: " + e.type + "\ndata: " + e.data + "\n\n";
 }
 
-}  // namespace ambdiag::server
-
-namespace ambdiag::server {
-
 std::string event_data(const nlohmann::json& data) {
   return data.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }

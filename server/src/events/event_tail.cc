@@ -1,10 +1,26 @@
 #include "events/event_tail.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace ambdiag::server::detail {
 
 Event to_event(const storage::StoredEvent& e) { return {static_cast<std::uint64_t>(e.seq), e.type, e.data_json}; }
+
+EventBus::History events_table_history(ReaderPool& pool) {
+  return [&pool](std::uint64_t after, std::size_t max) -> std::optional<std::vector<Event>> {
+    auto h = pool.acquire();
+    auto snap = h->snapshot();  // the bounds and the events of one state
+    const auto last = h->last_event_seq();
+    const auto first = h->first_event_seq();
+    const auto after_seq = static_cast<std::int64_t>(after);
+    if (after_seq > last || (first ? after_seq + 1 < *first : after_seq < last)) return std::nullopt;
+    std::vector<Event> out;
+    for (const auto& e : h->events_after(after_seq, static_cast<int>(std::min<std::size_t>(max, 1u << 30))))
+      out.push_back(to_event(e));
+    return out;
+  };
+}
 
 EventTail::EventTail(const std::string& db_path, EventBus& bus, std::chrono::milliseconds period)
     : h_(storage::Historian::open(db_path, storage::Historian::Mode::read)),

@@ -20,6 +20,7 @@
 
 #include "ambdiag/server/events.h"
 #include "ambdiag/storage/historian.h"
+#include "reader_pool.h"
 
 namespace ambdiag::server::detail {
 
@@ -53,5 +54,10 @@ class EventTail {
 };
 
 Event to_event(const storage::StoredEvent& e);
+
+// The events table as an EventBus::History, read through the REST
+// server's readers: the events after an id, or nullopt when the id is not
+// one of the table's (beyond its sequence) or events after it were pruned.
+EventBus::History events_table_history(ReaderPool& pool);
 
 }  // namespace ambdiag::server::detail
