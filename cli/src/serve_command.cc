@@ -10,20 +10,22 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
 #include "ambdiag/core/error.h"
-#include "ambdiag/core/process_lock.h"
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/ingest.h"
+#include "ambdiag/server/ingest_group.h"
 #include "ambdiag/server/metrics.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
 #include "serve_parts.h"
+#include "serve_ingest_group.h"
 
 namespace ambdiag::cli {
 
@@ -58,12 +60,12 @@ nlohmann::json read_alarm_defaults(const std::string& path) {
 }
 
 int run_serve(const std::vector<std::string>& argv) {
-  const Args args(argv,
-                  {"--db", "--http-port", "--domain", "--partition", "--agent-timeout", "--bench-commit-delay-ms",
-                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
-                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within", "--speak-protocol",
-                   "--web-dir", "--parts", "--instance", "--job-lease"},
-                  {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
+  std::set<std::string> options = {"--db", "--http-port", "--domain", "--agent-timeout", "--bench-commit-delay-ms",
+                                   "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
+                                   "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within",
+                                   "--speak-protocol", "--web-dir", "--parts", "--instance", "--job-lease"};
+  options.insert(std::begin(kIngestGroupOptionNames), std::end(kIngestGroupOptionNames));
+  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -81,12 +83,13 @@ int run_serve(const std::vector<std::string>& argv) {
   const int http_port = integer_in(args, "--http-port", 0, 65535, 0);
   server::IngestOptions opt;
   opt.domain = integer_in(args, "--domain", 0, 232, 0);
-  // The site and its pumps' own partitions (SITE/PUMP, docs/streaming.md "Security").
-  if (const auto p = args.option("--partition")) opt.partitions = {*p, *p + "/*"};
+  opt.partitions = ingest_partitions(args);
   opt.agent_timeout = std::chrono::milliseconds(
       static_cast<long>(1000.0 * args.number("--agent-timeout").value_or(10.0)));
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
   opt.verbose = !args.flag("--quiet");
+  server::IngestGroupOptions group_opt = ingest_group_options(args, opt.verbose);
+  group_opt.instance = instance;  // one name for the process: its lease, health, metrics, workers
   opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
 
   storage::CheckpointOptions ckpt;
@@ -126,12 +129,9 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
 
-  // One ingest per historian file: two would both take the same runs.
-  // Analysis and REST processes share the file (jobs have leases).
-  std::optional<ProcessLock> lock;
-  if (parts.ingest)
-    lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
-                 "; one ingest per historian file (other processes may run --parts analysis,rest on it)");
+  // No lock on the file: several servers share it, ingest groups decide
+  // which one ingests (docs/streaming.md) and job leases which one runs a
+  // job (docs/service.md "Several servers").
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs; the
   // checkpoints also say which commits are durable (docs/storage.md).
@@ -152,11 +152,14 @@ int run_serve(const std::vector<std::string>& argv) {
   opt.in_commit_run_complete = [](storage::Historian& h, const std::string& run_id) { server::queue_run_analysis(h, run_id); };
   if (analysis && aopt.workers > 0)
     opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
-  std::optional<server::Ingest> ingest;
+  // Several servers may name one ingest group: one ingests, the others stand by.
+  std::optional<server::IngestGroup> ingest_group;
   if (parts.ingest) {
-    ingest.emplace(historian, opt);
-    server::register_ingest_metrics(metrics, *ingest);
+    ingest_group.emplace(historian, opt, group_opt);
+    server::register_ingest_metrics(metrics, ingest_group->ingest());
+    server::register_ingest_group_metrics(metrics, *ingest_group);
   }
+  const server::Ingest* ingest = ingest_group ? &ingest_group->ingest() : nullptr;
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
@@ -174,11 +177,12 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
-  rest_opt.health_extra = [&ingest, &historian, &analysis, &parts, &instance] {
+  rest_opt.health_extra = [&ingest_group, &historian, &analysis, &parts, &instance] {
     const auto ck = historian.checkpoint_stats();
     return nlohmann::json{{"instance", instance},
                           {"parts", parts.names()},
-                          {"ingest", ingest ? ingest->health() : nlohmann::json(nullptr)},
+                          {"ingest", ingest_group ? ingest_group->ingest().health() : nlohmann::json(nullptr)},
+                          {"ingest_groups", ingest_group ? nlohmann::json::array({ingest_group->health()}) : nlohmann::json::array()},
                           {"jobs", analysis && parts.analysis ? analysis->counters() : nlohmann::json(nullptr)},
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
@@ -196,7 +200,9 @@ int run_serve(const std::vector<std::string>& argv) {
     bound_port = rest->start();
   }
   std::fprintf(stderr, "ambdiag serve: instance %s, parts %s, historian %s", instance.c_str(), parts.text().c_str(), db->c_str());
-  if (parts.ingest) std::fprintf(stderr, ", DDS domain %d, partition %s", opt.domain, opt.partitions.front().c_str());
+  if (ingest_group)
+    std::fprintf(stderr, ", DDS domain %d, ingest group %s (partitions %s)", opt.domain, group_opt.group.c_str(),
+                 ingest_group->status().partitions.c_str());
   if (parts.rest) std::fprintf(stderr, ", REST on port %d%s", bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
   std::fprintf(stderr, "\n");
   if (parts.rest && !rest_opt.web_dir.empty())
@@ -204,7 +210,7 @@ int run_serve(const std::vector<std::string>& argv) {
                  bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
   std::thread ingest_thread([&] {
-    if (ingest) ingest->run(g_stop);
+    if (ingest_group) ingest_group->run(g_stop);
   });
 
   // Progress on stderr every 5 s while something changes.
@@ -255,6 +261,7 @@ std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
+           "                     [--ingest-group NAME] [--ingest-partitions P,...] [--ingest-lease S]\n"
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
@@ -269,7 +276,11 @@ std::vector<Command> serve_commands() {
            "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-5), diagnosis.\n"
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
-           "requests without one read as viewer. One ingest per historian file (FILE.lock).\n"
+           "requests without one read as viewer.\n"
+           "--ingest-group NAME (default: default): servers naming one group on one database ingest its partitions\n"
+           "  (--partition SITE: SITE,SITE/*; or --ingest-partitions P1,P2 of DDS partition names or patterns; default *)\n"
+           "  one at a time: the holder renews a lease of S seconds (--ingest-lease, default 3), a standby takes over\n"
+           "  when it lapses (docs/streaming.md).\n"
            "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
@@ -279,10 +290,11 @@ std::vector<Command> serve_commands() {
            "docs/service.md \"Alarms\"), checked at the start.\n"
            "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
            "  ../share/ambdiag/web next to this binary; web/README.md).\n"
-           "--parts LIST: what this process runs, any of ingest, analysis, rest (default all three); several\n"
-           "  processes may share FILE: one with ingest (FILE.lock), any number with analysis or rest. Without\n"
+           "--parts LIST: what this process runs, any of ingest, analysis, rest (default all three); any number\n"
+           "  of processes may share FILE (docs/service.md \"Several servers\"). Without\n"
            "  rest no port is opened (--http-port refused); without analysis no job runs here (--workers refused).\n"
-           "--instance NAME: this process' name in health, metrics and its jobs' `worker` (default HOST:PID).\n"
+           "--instance NAME: this process' name in health, metrics, its jobs' `worker` and its ingest group's lease\n"
+           "  (default HOST:PID).\n"
            "--job-lease S: a claimed job is held S seconds (default 10) and renewed every S/3; a job whose\n"
            "  worker died or stalled is queued again by any analysis process once its lease expired.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"

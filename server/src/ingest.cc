@@ -59,6 +59,7 @@ nlohmann::json IngestCounters::to_json() const {
                       {"blocks_rejected_by_dds", blocks_rejected_by_dds.load()},
                       {"acks_sent", acks_sent.load()},
                       {"blocks_acked_durable", blocks_acked_durable.load()},
+                      {"commits_fenced", commits_fenced.load()},
                       {"heartbeats", heartbeats.load()}};
   std::lock_guard lock(mu_);
   nlohmann::json r = nlohmann::json::object();
@@ -124,8 +125,8 @@ storage::MonitoringSnapshot from_dds(const ambdiag_stream_MonitoringSnapshot& m)
 
 // The receive thread's side; the commit thread runs detail::Committer.
 struct Ingest::Impl {
-  Impl(storage::Historian& h, IngestOptions o, IngestCounters& c)
-      : opt(std::move(o)),
+  Impl(storage::Historian& h, const IngestOptions& o, IngestCounters& c)
+      : opt(o),
         counters(c),
         security_log(c),
         db_path(h.path()),
@@ -140,7 +141,7 @@ struct Ingest::Impl {
     ws.attach_data(ep.monitoring);
   }
 
-  IngestOptions opt;
+  const IngestOptions& opt;
   IngestCounters& counters;
   SecurityLog security_log;  // before the participant: refusals while it starts count too
   WriterPumps writers;
@@ -386,9 +387,9 @@ struct Ingest::Impl {
     check_timeouts();
   }
 
-  void commit_loop(const std::atomic<bool>& receiving_done) {
+  void commit_loop(const std::atomic<bool>& receiving_done, const std::atomic<bool>& lost) {
     auto last_commit = Clock::now() - opt.min_commit_interval;
-    for (;;) {
+    while (!committer.fenced() && !lost) {  // lost: what is queued is another holder's now
       // Read the flag before popping: once it is set nothing more is pushed,
       // so an empty pop after it means everything is committed.
       const bool done = receiving_done.load();
@@ -408,16 +409,21 @@ struct Ingest::Impl {
   }
 };
 
-Ingest::Ingest(storage::Historian& historian, IngestOptions opt)
-    : impl_(std::make_unique<Impl>(historian, std::move(opt), counters_)) {}
+Ingest::Ingest(storage::Historian& historian, IngestOptions opt) : historian_(historian), opt_(std::move(opt)) {}
 
 Ingest::~Ingest() = default;
 
-void Ingest::run(const std::atomic<bool>& stop_flag) {
+Ingest::End Ingest::run(const std::atomic<bool>& stop_flag) {
+  static const std::atomic<bool> never{false};
+  return run(stop_flag, never);
+}
+
+Ingest::End Ingest::run(const std::atomic<bool>& stop_flag, const std::atomic<bool>& lost_flag) {
+  const auto impl = std::make_unique<Impl>(historian_, opt_, counters_);
   std::atomic<bool> receiving_done{false};
   std::thread committer([&] {
     pthread_setname_np(pthread_self(), "ambdiag-commit");  // told apart in top -H, perf, /proc
-    impl_->commit_loop(receiving_done);
+    impl->commit_loop(receiving_done, lost_flag);
   });
   {
     struct Join {  // the commit thread finishes the queue even if receiving throws
@@ -428,11 +434,15 @@ void Ingest::run(const std::atomic<bool>& stop_flag) {
         t.join();
       }
     } join{receiving_done, committer};
-    while (!stop_flag.load()) impl_->receive_step();
+    while (!stop_flag.load() && !lost_flag.load() && !impl->committer.fenced()) impl->receive_step();
   }
+  // Lost: the held acks go with the Impl, unsent (the new holder
+  // acknowledges what the agents re-send).
+  if (impl->committer.fenced() || lost_flag.load()) return End::fenced;
   // The last commits' durable acks, once a checkpoint (time-triggered
   // within about a second) has synced them.
-  impl_->committer.drain(std::chrono::seconds(3));
+  impl->committer.drain(std::chrono::seconds(3));
+  return End::stopped;
 }
 
 }  // namespace ambdiag::server

@@ -222,9 +222,21 @@ void Committer::apply(Monitoring& w, Staged& st) {
 }
 
 void Committer::commit(std::vector<Work>& batch) {
+  if (fenced_) return;
   Staged st;
   try {
     auto tx = h_.write_batch();
+    // First, in the same transaction: does this process still hold its
+    // ingest group? A holder paused past its lease and taken over must not
+    // store, and above all not acknowledge, from its stale view (e.g. its
+    // runs all look timed out after the pause).
+    if (opt_.fence && !opt_.fence(h_)) {
+      fenced_ = true;
+      ++counters_.commits_fenced;
+      log_line(true, "the ingest group was taken over by another server: this batch is rolled back, nothing of it "
+                     "acknowledged; ingest stops here");
+      return;  // the batch rolls back with tx
+    }
     for (auto& w : batch) std::visit([&](auto& item) { apply(item, st); }, w);
     if (opt_.commit_delay.count() > 0) std::this_thread::sleep_for(opt_.commit_delay);
     tx.commit();

@@ -3,6 +3,7 @@
 // verdicts leave only after COMMIT returned.
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <utility>
 #include <unordered_map>
@@ -40,6 +41,9 @@ class Committer {
   void commit(std::vector<Work>& batch);
   // A clean stop: waits (at most `timeout`) for the held acks to go out.
   void drain(std::chrono::milliseconds timeout) { durable_acks_.drain(timeout); }
+  // A commit found the ingest group's lease lost (IngestOptions::fence):
+  // nothing more is committed (commit() returns at once) or acknowledged.
+  bool fenced() const { return fenced_.load(); }
 
  private:
   // The run's checksum (of `kind`) over chunks 0..next_seq-1 as this server
@@ -83,6 +87,7 @@ class Committer {
   IngestCounters& counters_;
   const dds::Writer<ambdiag_stream_Ack>& ack_writer_;
   std::unordered_map<std::string, Chain> chains_;
+  std::atomic<bool> fenced_{false};
   DurableAcks durable_acks_;  // last: its thread stops before the rest goes
 };
 

@@ -2,6 +2,7 @@
 #include <atomic>
 
 #include "ambdiag/server/ingest.h"
+#include "ambdiag/server/ingest_group.h"
 #include "ambdiag/server/metrics.h"
 
 namespace ambdiag::server {
@@ -34,6 +35,9 @@ void register_ingest_metrics(MetricsRegistry& registry, const Ingest& ingest) {
       {"ambdiag_ingest_blocks_refused_by_dds_total",
        "Blocks refused by the full DDS reader (re-sent by DDS: back-pressure, not loss).",
        c.blocks_rejected_by_dds},
+      {"ambdiag_ingest_commits_fenced_total",
+       "Ingest commits rolled back because another server had taken over the ingest group (nothing acknowledged).",
+       c.commits_fenced},
   };
   for (const auto& k : counters)
     registry.collected_value(k.name, k.help, MetricType::counter,
@@ -52,6 +56,24 @@ void register_ingest_metrics(MetricsRegistry& registry, const Ingest& ingest) {
                        for (const auto& [reason, n] : by) out.push_back({{reason}, static_cast<double>(n)});
                        return out;
                      });
+}
+
+void register_ingest_group_metrics(MetricsRegistry& registry, const IngestGroup& group) {
+  const auto one = [&group](auto value) {
+    return [&group, value] {
+      const auto s = group.status();
+      return std::vector<MetricSample>{{{s.group}, value(s)}};
+    };
+  };
+  using S = IngestGroup::Status;
+  registry.collected("ambdiag_ingest_group_holder",
+                     "1 while this server holds the ingest group (ingests its pumps), 0 while it stands by.",
+                     MetricType::gauge, {"group"}, one([](const S& s) { return s.holding ? 1.0 : 0.0; }));
+  registry.collected("ambdiag_ingest_group_takeovers_total", "Times this server took the ingest group.",
+                     MetricType::counter, {"group"}, one([](const S& s) { return static_cast<double>(s.takeovers); }));
+  registry.collected("ambdiag_ingest_group_lost_total",
+                     "Times another server took the ingest group over while this one held it (it had not renewed).",
+                     MetricType::counter, {"group"}, one([](const S& s) { return static_cast<double>(s.lost); }));
 }
 
 }  // namespace ambdiag::server

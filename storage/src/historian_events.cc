@@ -1,4 +1,4 @@
-// Historian: the events table (schema v7; events.h). Appended inside the
+// Historian: the events table (schema v8; events.h). Appended inside the
 // caller's transaction (a WriteBatch: the event commits with what it
 // announces), read by seq by each REST process' tail.
 #include <algorithm>

@@ -1,4 +1,4 @@
-// Historian: the job queue (tables jobs, job_artifacts; schema v4, leases v7).
+// Historian: the job queue (tables jobs, job_artifacts; schema v4, leases v8).
 //
 // A job moves queued -> running -> done | failed, or to cancelled from
 // queued or running; requeue_expired_jobs (and, for one server at its
@@ -14,7 +14,7 @@
 // and enqueue without a race: SQLite serialises the writers (busy timeout)
 // and every check is re-done inside.
 //
-// PostgreSQL (docs/storage.md "Schema v7"): claim_job's pick becomes
+// PostgreSQL (docs/storage.md "Schema v8"): claim_job's pick becomes
 // SELECT ... FOR UPDATE SKIP LOCKED; the fenced updates and the requeue are
 // plain SQL as they are.
 #include <algorithm>

@@ -341,7 +341,28 @@ CREATE TABLE alarm_cursors (
   last_valid_at      TEXT
 ) STRICT;
 )sql"},
-    // v7: several servers on one database (docs/service.md "Several
+    // v7: ingest groups (docs/streaming.md "Several servers: ingest groups and
+    // failover"). One row per group: the DDS partitions it covers, the
+    // process holding it, the fencing epoch (+1 at each new holder; every
+    // ingest commit checks it in its own transaction) and a renewal count
+    // standbys watch: a holder that stops renewing for its lease is taken
+    // over. Times are the holder's clock, for people only: no standby
+    // compares clocks. Plain SQL, the same on PostgreSQL.
+    {7, R"sql(
+CREATE TABLE ingest_leases (
+  ingest_group  TEXT PRIMARY KEY CHECK (ingest_group <> ''),
+  partitions    TEXT NOT NULL CHECK (partitions <> ''),
+  holder        TEXT NOT NULL DEFAULT '',
+  epoch         INTEGER NOT NULL DEFAULT 0 CHECK (epoch >= 0),
+  renewals      INTEGER NOT NULL DEFAULT 0 CHECK (renewals >= 0),
+  lease_ms      INTEGER NOT NULL CHECK (lease_ms > 0),
+  acquired_at   TEXT,
+  renewed_at    TEXT,
+  expires_at    TEXT,
+  created_at    TEXT NOT NULL
+) STRICT;
+)sql"},
+    // v8: several servers on one database (docs/service.md "Several
     // servers"). A running job's lease: the server clock (ISO 8601 UTC with
     // milliseconds, so text order is time order) until which its attempt
     // holds it; renewed by the worker, and an expired one is queued again by
@@ -351,7 +372,7 @@ CREATE TABLE alarm_cursors (
     // process by seq. The sequence starts at the migration's time in
     // microseconds, so an event id of another (older) database is never
     // mistaken for one of this database's.
-    {7, R"sql(
+    {8, R"sql(
 ALTER TABLE jobs ADD COLUMN lease_expires_at TEXT;
 CREATE INDEX jobs_running_by_lease ON jobs(lease_expires_at) WHERE status = 'running';
 

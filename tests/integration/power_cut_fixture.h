@@ -12,7 +12,6 @@
 #pragma once
 
 #include <signal.h>
-#include <sqlite3.h>
 
 #include <random>
 #include <map>
@@ -22,6 +21,7 @@
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/storage/power_cut.h"
 #include "fleet_fixture.h"
+#include "sql_peek.h"
 
 namespace ambdiag::testing {
 
@@ -50,30 +50,6 @@ struct CutTally {
                 static_cast<long long>(runs_duplicated), static_cast<long long>(jobs_duplicated));
   }
 };
-
-// One value of a query on the file, with the default VFS (this process never installs the other).
-inline std::string sql_text(const fs::path& db, const std::string& sql) {
-  sqlite3* h = nullptr;
-  sqlite3_open(db.c_str(), &h);
-  sqlite3_stmt* s = nullptr;
-  std::string v = "?";
-  if (sqlite3_prepare_v2(h, sql.c_str(), -1, &s, nullptr) == SQLITE_OK && sqlite3_step(s) == SQLITE_ROW &&
-      sqlite3_column_text(s, 0))
-    v = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
-  sqlite3_finalize(s);
-  sqlite3_close(h);
-  return v;
-}
-inline int64_t sql_int(const fs::path& db, const std::string& sql) {
-  const std::string v = sql_text(db, sql);
-  return v == "?" ? -1 : std::stoll(v);
-}
-
-inline std::string sql_quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("''") : std::string(1, c);
-  return out + "'";
-}
 
 class PowerCutTest : public FleetTest {
  protected:
@@ -194,11 +170,7 @@ class PowerCutTest : public FleetTest {
     for (auto& a : agents) EXPECT_EQ(a->wait(120s), 0) << a->log() << "\n--- server ---\n" << server->log();
     // Every run complete, once, sample for sample.
     for (const auto& r : runs) {
-      const RunRecording rec = read_run(r.string());
-      const auto info = find_run(rec.run_id);
-      ASSERT_TRUE(info) << rec.run_id;
-      EXPECT_EQ(info->status, storage::RunStatus::complete) << rec.run_id << ": " << info->status_reason;
-      EXPECT_TRUE(stored_samples(rec.run_id) == read_file_bytes((r / "samples.f32").string())) << rec.run_id;
+      const RunRecording rec = expect_stored_complete(r);
       const int64_t blocks = (rec.frame_count() + 511) / 512;
       t.runs_duplicated += std::max<int64_t>(0, sql_int(db, "SELECT count(*) FROM sample_chunks WHERE run_id = " +
                                                                  sql_quote(rec.run_id)) - blocks);

@@ -53,9 +53,12 @@ class StreamTest : public ::testing::Test {
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, env, (dir / ("server" + std::to_string(log_n++) + ".log")).string());
   }
-  std::unique_ptr<Process> start_agent(const fs::path& run_dir, const std::vector<std::string>& extra = {}) {
+  // One agent per spool folder: agents running together need one each.
+  std::unique_ptr<Process> start_agent(const fs::path& run_dir, const std::vector<std::string>& extra = {},
+                                       const fs::path& spool = {}) {
     std::vector<std::string> argv = {AMBDIAG_AGENT, "replay", run_dir.string(), "--domain", std::to_string(domain),
-                                     "--partition", partition, "--spool-dir", (dir / "spool").string()};
+                                     "--partition", partition, "--spool-dir",
+                                     (spool.empty() ? dir / "spool" : spool).string()};
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, env, (dir / ("agent" + std::to_string(log_n++) + ".log")).string());
   }
@@ -79,6 +82,17 @@ class StreamTest : public ::testing::Test {
     auto h = storage::Historian::open(db.string(), storage::Historian::Mode::read);
     return h.read_samples(run_id);
   }
+  // The recording in `run_dir` is held complete, sample for sample; returns
+  // it (with its run id) for further checks.
+  RunRecording expect_stored_complete(const fs::path& run_dir) {
+    RunRecording rec = read_run(run_dir.string());
+    const auto info = find_run(rec.run_id);
+    EXPECT_TRUE(info) << rec.run_id;
+    if (!info) return rec;
+    EXPECT_EQ(info->status, storage::RunStatus::complete) << rec.run_id << ": " << info->status_reason;
+    EXPECT_TRUE(stored_samples(rec.run_id) == read_file_bytes((run_dir / "samples.f32").string())) << rec.run_id;
+    return rec;
+  }
   // Waits until the run has `status` (or the deadline passes).
   bool wait_status(const std::string& run_id, storage::RunStatus status, std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
@@ -92,10 +106,12 @@ class StreamTest : public ::testing::Test {
     }
     return false;
   }
-  // The first `seconds` of the reference run under a new run id, written to
-  // the scratch folder (paced replays of it take `seconds`).
-  fs::path short_run(double seconds, const std::string& run_id) {
+  // The first `seconds` of the reference run under a new run id (and pump,
+  // when given), written to the scratch folder (paced replays of it take
+  // `seconds`).
+  fs::path short_run(double seconds, const std::string& run_id, const std::string& pump_id = "") {
     RunRecording run = read_run(data_file("reference_pump/run_ref_1").string());
+    if (!pump_id.empty()) run.pump_id = pump_id;
     const auto frames = static_cast<size_t>(seconds * run.sample_rate_hz);
     run.samples.resize(frames * run.channels.size());
     run.run_id = run_id;

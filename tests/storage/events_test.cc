@@ -1,4 +1,4 @@
-// The events table (schema v7): seqs that only grow, from the migration's
+// The events table (schema v8): seqs that only grow, from the migration's
 // time in microseconds; an event commits with what it announces or not at
 // all (a WriteBatch); reading by seq from several connections; pruning.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Job leases (schema v7): a claim holds its job until its lease ends, the
+// Job leases (schema v8): a claim holds its job until its lease ends, the
 // worker renews it, an expired lease is queued again by any connection (or
 // failed after the last attempt), and an attempt whose lease expired never
 // stores anything, even before anyone requeued or claimed the job.
@@ -154,7 +154,7 @@ TEST(JobLeases, AReleasedJobIsQueuedAgainAtOnceAndACancelledOneHoldsNothing) {
   EXPECT_FALSE(h.finish_job(b, jb->attempts, "{}"));
 }
 
-// A job left running by a program before schema v7 has no lease: its
+// A job left running by a program before schema v8 has no lease: its
 // worker is gone with that program, so it counts as expired.
 TEST(JobLeases, ARunningJobWithoutALeaseCountsAsExpired) {
   const auto path = db_path();

@@ -42,10 +42,13 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
-// Undoes migration 7 (job leases, the events table).
-inline constexpr const char* kUndoLeasesEventsV7Sql =
+// Undoes migration 8 (job leases, the events table).
+inline constexpr const char* kUndoLeasesEventsV8Sql =
     "DROP TABLE events; DELETE FROM sqlite_sequence WHERE name = 'events'; DROP INDEX jobs_running_by_lease; "
     "ALTER TABLE jobs DROP COLUMN lease_expires_at;";
+
+// Undoes migration 7 (ingest groups' leases).
+inline constexpr const char* kUndoIngestLeasesV7Sql = "DROP TABLE ingest_leases;";
 
 // Undoes migration 6 (alarms) in SQL, back to v1's unused `alarms` table:
 // for the tests that take a file back to an older schema version.
@@ -67,10 +70,11 @@ inline constexpr const char* kUndoServiceV4Sql =
     "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT;";
 
 // A file of the current schema taken back to what migration `version`
-// (3 or 4) left, for the tests of upgrades.
+// (3, 4 or 6) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
-  raw_exec(path, kUndoLeasesEventsV7Sql);
-  raw_exec(path, kUndoAlarmsV6Sql);
+  raw_exec(path, kUndoLeasesEventsV8Sql);
+  raw_exec(path, kUndoIngestLeasesV7Sql);
+  if (version < 6) raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path, kUndoTrendsV5Sql);
   if (version < 4) raw_exec(path, kUndoServiceV4Sql);
   raw_exec(path, ("PRAGMA user_version = " + std::to_string(version) + ";").c_str());

@@ -73,6 +73,13 @@ struct IngestOptions {
   // acknowledges blocks and verdicts once committed, never as durable).
   // Unset: this build's (1.2, durable acknowledgements).
   std::optional<uint32_t> speak_protocol_minor;
+  // The ingest group's lease (ingest_group.h): called from the commit
+  // thread inside each commit's transaction, before anything is written,
+  // with the ingest's historian. False means this process no longer holds
+  // its group: the batch rolls back, nothing of it is acknowledged, the
+  // acknowledgements still held for durability are dropped and run()
+  // returns at once. Unset: always holding (a server alone).
+  std::function<bool(storage::Historian&)> fence;
 };
 
 // Counters, readable from any thread (REST health).
@@ -82,7 +89,8 @@ struct IngestCounters {
       monitoring_stored{0}, monitoring_duplicate{0}, storage_errors{0}, queue_bytes{0}, queue_peak_bytes{0},
       runs_verified_from_digest{0},
       blocks_acked_durable{0},  // block acknowledgements sent as durable (protocol 1.2), counted per block
-      blocks_rejected_by_dds{0};  // refused by the block reader's resource limits (re-sent by DDS)
+      blocks_rejected_by_dds{0},  // refused by the block reader's resource limits (re-sent by DDS)
+      commits_fenced{0};  // batches rolled back because the ingest group's lease was lost (IngestOptions::fence)
   // Steady-clock ns of the first block received and of the last commit that
   // stored blocks or ended a run: their difference is the streaming span.
   std::atomic<int64_t> first_block_ns{0}, last_commit_ns{0};
@@ -102,25 +110,36 @@ struct IngestCounters {
 
 class Ingest {
  public:
-  // `historian` must be open for writing and is used from run()'s thread only.
+  // `historian` must be open for writing and is used from run()'s threads only.
   Ingest(storage::Historian& historian, IngestOptions opt);
   ~Ingest();
   Ingest(const Ingest&) = delete;
   Ingest& operator=(const Ingest&) = delete;
 
-  // Receives until `stop_flag` is set (checked every 100 ms, so a signal
-  // handler may set it), then commits what is queued and returns. Runs the
-  // commit thread itself; a StorageError of a commit is logged and counted,
-  // nothing of that batch is acknowledged (the agents re-send it).
-  void run(const std::atomic<bool>& stop_flag);
+  enum class End {
+    stopped,  // stop_flag: what was queued is committed, the held acks sent (at most 3 s)
+    fenced    // the group is lost (fence, lost_flag): nothing more committed or acknowledged
+  };
+  // Joins DDS (the readers and the ack writer exist only while it runs: a
+  // standby has none, and agents see a server appear when it starts) and
+  // receives until `stop_flag` is set (checked every 100 ms, so a signal
+  // handler may set it) or the group is lost (the fence fails, or
+  // `lost_flag` is set by whoever found another holder), then leaves DDS
+  // and returns. Runs the commit thread itself; a StorageError of a commit
+  // is logged and counted, nothing of that batch is acknowledged (the
+  // agents re-send it). May be called again after it returned (a standby
+  // that took over again).
+  End run(const std::atomic<bool>& stop_flag, const std::atomic<bool>& lost_flag);
+  End run(const std::atomic<bool>& stop_flag);  // a server alone: never lost
   const IngestCounters& counters() const { return counters_; }
   nlohmann::json health() const { return counters_.to_json(); }
 
   struct Impl;
 
  private:
+  storage::Historian& historian_;
+  IngestOptions opt_;
   IngestCounters counters_;
-  std::unique_ptr<Impl> impl_;
 };
 
 // Ingest's counters as metrics (GET /metrics): runs received by outcome,

@@ -1,4 +1,4 @@
-// The events table (schema v7): what GET /api/v1/events streams, kept in
+// The events table (schema v8): what GET /api/v1/events streams, kept in
 // the database so that every server on it streams the same events with the
 // same ids (docs/service.md "Several servers"). An event is written in the
 // transaction of what it announces (a run's status, a job's result, an

@@ -35,6 +35,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/alarms.h"
 #include "ambdiag/storage/events.h"
+#include "ambdiag/storage/ingest_lease.h"
 #include "ambdiag/storage/monitoring.h"
 #include "ambdiag/storage/service.h"
 #include "ambdiag/storage/trends.h"
@@ -300,7 +301,7 @@ class Historian {
   // Returns how many were queued again.
   int requeue_running_jobs(int max_attempts = 3);
   // The `running` jobs whose lease has expired (their worker died or
-  // stalled; a job without a lease, left by a program before schema v7,
+  // stalled; a job without a lease, left by a program before schema v8,
   // counts as expired): `queued` again, attempts kept (the next claim is a
   // new attempt), or `failed` once they have had max_attempts claims. Safe
   // beside live workers of other processes: their leases have not expired.
@@ -332,7 +333,7 @@ class Historian {
   std::vector<StoredEvent> events_after(std::int64_t after_seq, int limit);
   // The newest `limit` events held, oldest first.
   std::vector<StoredEvent> recent_events(int limit);
-  // The newest seq the table ever gave (0 before schema v7's first writer):
+  // The newest seq the table ever gave (0 before schema v8's first writer):
   // not lowered by pruning, so a tail that starts here misses nothing new.
   std::int64_t last_event_seq();
   // The oldest seq still held; nullopt when the table is empty.
@@ -401,6 +402,32 @@ class Historian {
   // The pump's first complete identification run after (started_at, run_id)
   // in that order; the first of all when `after` is empty.
   std::optional<RunInfo> next_run_for_alarms(const std::string& pump_id, const std::optional<std::pair<std::string, std::string>>& after);
+
+  // --- ingest groups (ingest_lease.h; historian_leases.cc) ---
+  // Each call is one write transaction; inside a WriteBatch, a savepoint of
+  // it (the ingest's commit checks its lease in its own transaction).
+  // Registers the group, held by nobody, if it is new, and returns its row.
+  // A group held by nobody takes the partitions given. Throws InputError
+  // for an empty group or partition list, lease_ms < 1, or a group that is
+  // held while registered with other partitions (servers of one group must
+  // read the same pumps); nothing changed then.
+  IngestLease join_ingest_group(const std::string& group, const std::string& partitions, std::int64_t lease_ms);
+  std::optional<IngestLease> find_ingest_lease(const std::string& group);
+  std::vector<IngestLease> list_ingest_leases();  // by group
+  // Takes the group for `holder` if its row is still as `seen` (holder,
+  // epoch, renewals) and covers `partitions`: epoch + 1, lease_ms the new
+  // holder's. nullopt (nothing changed) when another server renewed or took
+  // it meanwhile, or it covers other partitions.
+  std::optional<IngestLease> take_ingest_lease(const IngestLease& seen, const std::string& holder,
+                                               const std::string& partitions, std::int64_t lease_ms);
+  // The holder (holder, epoch) renews: renewals + 1, renewed_at and
+  // expires_at from now. False, nothing changed, when it no longer holds
+  // the group (taken over, released).
+  bool renew_ingest_lease(const std::string& group, const std::string& holder, std::int64_t epoch,
+                          std::int64_t lease_ms);
+  // A clean stop: held by nobody, so a standby takes it at once. False when
+  // (holder, epoch) no longer held it.
+  bool release_ingest_lease(const std::string& group, const std::string& holder, std::int64_t epoch);
 
   // --- reading (either mode) ---
   std::vector<PumpSummary> list_pumps();
