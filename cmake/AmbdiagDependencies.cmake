@@ -22,6 +22,8 @@ if(NOT AMBDIAG_FUZZ_ONLY)
   # HTTPS for the REST service (issue 21): Debian's cpp-httplib is built
   # with CPPHTTPLIB_OPENSSL_SUPPORT; the TLS context is set up with OpenSSL.
   find_package(OpenSSL REQUIRED)
+  # The REST server gzips its text replies itself (server/src/http_compress.h).
+  find_package(ZLIB REQUIRED)
 endif()
 
 if(AMBDIAG_BUILD_TESTS OR AMBDIAG_FUZZ)

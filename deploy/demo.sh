@@ -33,7 +33,9 @@ rm -f "$db" "$db-wal" "$db-shm"
 rm -rf "$out"/spool_*
 token=$("$bin" token add --db "$db" --role engineer --name demo --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["token"])')
 
-"$bin" serve --db "$db" --http-port 0 --domain "$domain" --partition demo 2>"$out/server.log" &
+# --anonymous-read: the web UI opens on the demo fleet without a token (read-only);
+# the engineer's token printed at the end signs in to acknowledge, shelve, explain.
+"$bin" serve --db "$db" --http-port 0 --domain "$domain" --partition demo --anonymous-read 2>"$out/server.log" &
 server=$!
 trap 'kill $server 2>/dev/null; wait $server 2>/dev/null || true' EXIT
 port=""
@@ -76,8 +78,8 @@ echo "outputs in $out/ (historian, logs); e.g. $url/api/v1/runs/{run_id}/bode.sv
 keep=${AMBDIAG_DEMO_KEEP:-}
 [ -n "$keep" ] || { [ -t 0 ] && [ -t 1 ] && keep=1 || keep=0; }
 if [ "$keep" = 1 ]; then
-  echo "== web UI: $url/ (sign in with the token $token); Ctrl-C stops the server"
+  echo "== the demo fleet in the web UI, read-only: $url/ (Sign in with the engineer's token $token to act); Ctrl-C stops the server"
   wait $server
 else
-  echo "== web UI: $url/ while the server runs (AMBDIAG_DEMO_KEEP=1 keeps it up; sign in with the token $token)"
+  echo "== web UI: $url/ while the server runs (AMBDIAG_DEMO_KEEP=1 keeps it up; engineer's token $token)"
 fi

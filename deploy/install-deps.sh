@@ -10,7 +10,7 @@ packages=(
   libsqlite3-dev sqlite3
   nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcpp-httplib-dev
+  libcpp-httplib-dev zlib1g-dev
   libclang-rt-14-dev
   python3
   openssl libssl-dev
@@ -23,6 +23,9 @@ packages=(
 # nodejs 18 and npm 9 unless a node is installed already (e.g. NodeSource's,
 # whose package replaces Debian's npm).
 command -v node >/dev/null && command -v npm >/dev/null || packages+=(nodejs npm)
+if command -v node >/dev/null && [ "$(node -p 'process.versions.node.split(".")[0]')" -lt 18 ]; then
+  echo "install-deps: node $(node --version) is older than 18: the web UI's browser tests need 18 or later" >&2
+fi
 
 # npm packages the tests use, each folder pinned by its package-lock.json
 # (npm ci installs exactly that); skipped when already installed from it.

@@ -244,6 +244,23 @@ void Writer::legend(const SvgPanel& p, const std::vector<std::string>& colors) {
 
 }  // namespace
 
+void break_at_jumps(SvgSeries& s, double max_jump) {
+  const size_t n = std::min(s.x.size(), s.y.size());
+  std::vector<double> x, y;
+  x.reserve(n + n / 8);
+  y.reserve(n + n / 8);
+  for (size_t i = 0; i < n; ++i) {
+    if (i > 0 && std::abs(s.y[i] - s.y[i - 1]) > max_jump) {
+      x.push_back((s.x[i - 1] + s.x[i]) / 2);
+      y.push_back(std::numeric_limits<double>::quiet_NaN());
+    }
+    x.push_back(s.x[i]);
+    y.push_back(s.y[i]);
+  }
+  s.x = std::move(x);
+  s.y = std::move(y);
+}
+
 std::vector<double> nice_ticks(double lo, double hi, int target) {
   if (!std::isfinite(lo) || !std::isfinite(hi)) return {0.0, 1.0};
   if (lo > hi) std::swap(lo, hi);

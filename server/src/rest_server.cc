@@ -12,6 +12,7 @@
 #include "ambdiag/server/events.h"
 #include "ambdiag/server/metrics.h"
 #include "events/event_tail.h"
+#include "http_compress.h"
 #include "rate_limit.h"
 #include "reader_pool.h"
 #include "rest_tls.h"
@@ -159,6 +160,7 @@ struct RestServer::Impl {
     } catch (...) {
       send_exception(res, std::current_exception());
     }
+    detail::gzip_reply(req, res);  // not httplib's brotli: seconds for a megabyte (http_compress.h)
     count(req.method, route, res.status == -1 ? 200 : res.status, t0);  // httplib's default: 200
   }
 

@@ -137,6 +137,24 @@ TEST(SvgPlot, SkipsNonFinitePointsAndBreaksTheLine) {
   EXPECT_EQ(count(svg, "fill=\"#fdb863\""), 0u);  // a band with a NaN edge is skipped
 }
 
+// A phase wrapped to +-180 deg: the line breaks at each wrap (two here)
+// instead of crossing the panel, and nowhere else.
+TEST(SvgPlot, BreaksTheLineWherePhaseWraps) {
+  SvgSeries s = line({1, 2, 3, 4, 5, 6}, {170, 179, -179, -170, 175, 178});
+  break_at_jumps(s, 180.0);
+  ASSERT_EQ(s.x.size(), 8u);
+  EXPECT_TRUE(std::isnan(s.y[2]));
+  EXPECT_DOUBLE_EQ(s.x[2], 2.5);
+  EXPECT_TRUE(std::isnan(s.y[5]));
+  EXPECT_EQ(std::count_if(s.y.begin(), s.y.end(), [](double v) { return std::isnan(v); }), 2);
+  SvgFigure f;
+  f.panels.push_back({.y_label = "phase (deg)", .log_y = false, .series = {s}, .bands = {}, .y_range = {}});
+  EXPECT_EQ(count(render_svg(f), "<polyline"), 3u);
+  SvgSeries smooth = line({1, 2, 3}, {-10, -90, -170});
+  break_at_jumps(smooth, 180.0);
+  EXPECT_EQ(smooth.y.size(), 3u);
+}
+
 TEST(SvgPlot, DegenerateInputsStillGiveADocument) {
   EXPECT_EQ(testing::xml_problem(render_svg(SvgFigure{})), "");
   SvgFigure f;

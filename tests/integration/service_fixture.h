@@ -20,12 +20,18 @@ class ServiceTest : public StreamTest {
   int port = 0;
   std::map<std::string, std::string> tokens;  // role -> secret
 
-  // Tokens of every role (named after it), then the server (no anonymous reads).
+  // Options every start_service adds (e.g. --anonymous-read for a test
+  // whose server is started by a fixture's helper).
+  std::vector<std::string> serve_options;
+
+  // Tokens of every role (named after it), then the server (no anonymous
+  // reads unless asked).
   void start_service(const std::vector<std::string>& extra = {}) {
     for (const char* role : {"viewer", "operator", "engineer", "admin"})
       if (!tokens.count(role)) tokens[role] = add_token(role, role);
     std::vector<std::string> argv = {AMBDIAG_CLI, "serve", "--db", db.string(), "--http-port", "0", "--domain",
                                      std::to_string(domain), "--partition", partition};
+    argv.insert(argv.end(), serve_options.begin(), serve_options.end());
     argv.insert(argv.end(), extra.begin(), extra.end());
     server = std::make_unique<Process>(argv, env, (dir / ("server" + std::to_string(log_n++) + ".log")).string());
     port = rest_port(*server);

@@ -2,8 +2,10 @@
 // agents (fleet_fixture.h: two simulated pumps, one whose balance piston
 // wears), then web/tests/ui_test.mjs drives Debian's headless chromium
 // through playwright-core against it. Screenshots go to
-// build/web-screenshots/. web_ui_test.cc holds the default check,
-// web_ui_slow_test.cc the explain job (label slow).
+// build/web-screenshots/ (the slow test's to build/web-screenshots/slow/:
+// both may run at once). web_ui_test.cc holds the default check (a server
+// with --anonymous-read, and a viewer's token), web_ui_slow_test.cc the
+// login page first and the explain job (label slow).
 #pragma once
 
 #include "fleet_fixture.h"
@@ -45,8 +47,9 @@ class WebUiTest : public FleetTest {
     return faulty_run;
   }
 
-  // Runs the browser checks of the groups in `checks` (ui_test.mjs); its exit code.
-  int run_browser(const std::string& faulty_run, const std::string& checks) {
+  // Runs the browser checks of the groups in `checks` (ui_test.mjs), its
+  // screenshots in `shots` under build/web-screenshots; its exit code.
+  int run_browser(const std::string& faulty_run, const std::string& checks, const std::string& shots = "") {
     env["AMBDIAG_URL"] = "http://127.0.0.1:" + std::to_string(port);
     env["AMBDIAG_VIEWER_TOKEN"] = tokens["viewer"];
     env["AMBDIAG_OPERATOR_TOKEN"] = tokens["operator"];
@@ -54,7 +57,7 @@ class WebUiTest : public FleetTest {
     env["AMBDIAG_PUMPS"] = pumps_;
     env["AMBDIAG_FAULTY_PUMP"] = "W-2";
     env["AMBDIAG_FAULTY_RUN"] = faulty_run;
-    env["AMBDIAG_SCREENSHOTS"] = AMBDIAG_SCREENSHOTS;
+    env["AMBDIAG_SCREENSHOTS"] = (fs::path(AMBDIAG_SCREENSHOTS) / shots).string();
     env["AMBDIAG_UI_CHECKS"] = checks;
     Process node({AMBDIAG_NODE, std::string(AMBDIAG_WEB_SOURCE) + "/tests/ui_test.mjs"}, env,
                  (dir / "browser.log").string());

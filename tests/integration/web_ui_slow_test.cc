@@ -14,7 +14,7 @@ TEST_F(WebUiTest, AHealthyAndAFaultyPumpAndExplainFromTheRunView) {
   if (IsSkipped()) return;
   const std::string faulty_run = set_up_fleet(true);
   ASSERT_FALSE(faulty_run.empty());
-  EXPECT_EQ(run_browser(faulty_run, "fleet,run,pump,explain"), 0);
+  EXPECT_EQ(run_browser(faulty_run, "fleet,run,pump,explain", "slow"), 0);
 }
 
 }  // namespace

@@ -29,6 +29,7 @@ std::string explain_svg(const ExplainResult& r, const FrfData& meas) {
     mag.bands = bands;
     ph.y_label = "phase " + me.output + "/" + me.input + " (deg)";
     ph.bands = bands;
+    ph.y_range = {{-180.0, 180.0}};
     auto add = [&](const std::string& label, const std::vector<std::complex<double>>& h, const std::string& color, bool dashed) {
       SvgSeries sm{label, meas.freq_hz, {}, color, false, dashed};
       SvgSeries sp{"", meas.freq_hz, {}, color, false, dashed};
@@ -36,6 +37,7 @@ std::string explain_svg(const ExplainResult& r, const FrfData& meas) {
         sm.y.push_back(std::abs(v));
         sp.y.push_back(std::arg(v) * 180.0 / M_PI);
       }
+      break_at_jumps(sp, 180.0);  // wrapped to +-180 deg: a gap at each wrap, not a stroke across
       mag.series.push_back(sm);
       ph.series.push_back(sp);
     };

@@ -1,5 +1,6 @@
-// The model's FRF of an analysed run as data, for the web UI's Bode plot
-// over the measured FRF (GET /api/v1/runs/{run_id}/model_frf.csv).
+// The model's and the modal fit's FRF of an analysed run as data, for the
+// web UI's Bode plot over the measured FRF (GET
+// /api/v1/runs/{run_id}/model_frf.csv and .../fit_frf.csv).
 #pragma once
 
 #include <string>
@@ -14,5 +15,11 @@ namespace ambdiag::server::detail {
 // it costs no space per run. Throws NotFoundError for an unknown run or one
 // without a finished analysis.
 std::string model_frf_csv(storage::Historian& h, const std::string& run_id);
+
+// The FRF file of the modal fit of the run's current analysis (its
+// fit_model.json, fit_model_file.h) on the grid of its frf.csv, for the
+// entries the fit used. NotFoundError as model_frf_csv, and for an analysis
+// made before fit_model.json was kept.
+std::string fit_frf_csv(storage::Historian& h, const std::string& run_id);
 
 }  // namespace ambdiag::server::detail

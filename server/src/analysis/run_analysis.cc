@@ -13,6 +13,7 @@
 #include "ambdiag/algorithms/model/frf_compare.h"
 #include "ambdiag/algorithms/model/modal_analysis.h"
 #include "ambdiag/core/error.h"
+#include "analysis/fit_model_file.h"
 
 namespace ambdiag::server::detail {
 
@@ -115,6 +116,7 @@ JobOutput analyse_run(const PlantModel& plant, const RunRecording& run, const Op
   r["fit"]["order"] = fit_json["order"];
   r["fit"]["pole_pairs"] = fit_json["pole_pairs"];
   out.artifacts.push_back(svg("stabilization.svg", stabilization_svg(fit, frf)));
+  out.artifacts.push_back({"fit_model.json", "application/json", fit_model_json(fit, frf).dump()});
   report(progress, 0.75);
 
   const FrfData model = model_frf_like(plant, frf);

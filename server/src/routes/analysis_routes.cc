@@ -187,10 +187,10 @@ void add_analysis_routes(RouteTable& t) {
   reference.body = "{\"runs\": [run_id, ...]}: at least 2 complete identification runs of the pump";
   reference.status = 202;
   t.add({"GET", "/api/v1/runs/{run_id*}/analysis", Role::viewer, "the run's analysis: status, modes, detection, diagnosis", run(get_analysis)});
-  for (const char* file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg"})
-    t.add({"GET", std::string("/api/v1/runs/{run_id*}/") + file, Role::viewer, std::string("the analysis' ") + file,
-           [file = std::string(file)](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
-           file == std::string("frf.csv") ? "text/csv" : "image/svg+xml"});
+  for (const std::string file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg", "fit_model.json"})
+    t.add({"GET", "/api/v1/runs/{run_id*}/" + file, Role::viewer, "the analysis' " + file,
+           [file](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
+           file == "frf.csv" ? "text/csv" : file == "fit_model.json" ? "application/json" : "image/svg+xml"});
   t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)})
       .status = 202;
   t.add({"GET", "/api/v1/jobs", Role::viewer, "jobs, newest first", [](RouteContext& c, const PathParams&) { get_jobs(c); },

@@ -1,9 +1,11 @@
 // What the web UI (web/, issue 20) needs from the server: its own files
 // (GET / and GET /ui/..., no token: rest.md "Who may do what"), the whole
 // fleet's pump views in one request (GET /api/v1/fleet: one request per
-// pump would take 20 s of a 50/s rate limit for 1000 pumps) and the
-// model's FRF of a run as data (GET .../model_frf.csv, so the browser draws
-// it over the measured one).
+// pump would take 20 s of a 50/s rate limit for 1000 pumps), who the
+// caller is (GET /api/v1/me: the UI offers only the actions of its role)
+// and the model's and the modal fit's FRF of a run as data (GET
+// .../model_frf.csv, .../fit_frf.csv, so the browser draws them over the
+// measured one).
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -112,9 +114,14 @@ void get_fleet(RouteContext& c) {
   send_json(c.res, 200, {{"pumps", list}});
 }
 
-void get_model_frf(RouteContext& c, const std::string& run_id) {
-  auto h = c.pool.acquire();
-  const std::string csv = model_frf_csv(*h, run_id);
+// The caller as the token (or --anonymous-read) makes it: the UI shows
+// the actions of this role and hides or disables the rest.
+void get_me(RouteContext& c) {
+  send_json(c.res, 200,
+            {{"name", c.caller.name}, {"role", storage::to_string(c.caller.role)}, {"anonymous", !c.caller.from_token}});
+}
+
+void send_csv(RouteContext& c, const std::string& csv) {
   c.res.status = 200;
   c.res.set_content(csv, "text/csv");
 }
@@ -148,13 +155,30 @@ void add_web_routes(RouteTable& t) {
   t.add({"GET", "/api/v1/fleet", Role::viewer,
          "every pump's view (as GET /api/v1/pumps/{pump_id}) with its run count, in one reply",
          [](RouteContext& c, const PathParams&) { get_fleet(c); }});
+  t.add({"GET", "/api/v1/me", Role::viewer, "who the request's token (or --anonymous-read) makes the caller",
+         [](RouteContext& c, const PathParams&) { get_me(c); }})
+      .description =
+      "{\"name\", \"role\": \"viewer|operator|engineer|admin\", \"anonymous\": bool}: the token's name and role, "
+      "or name \"anonymous\" with role viewer for a request without a token on a server with --anonymous-read. "
+      "The web UI offers only the actions of this role.";
   t.add({"GET",
          "/api/v1/runs/{run_id*}/model_frf.csv",
          Role::viewer,
          "the model's FRF on the run's grid and entries at its speed (the model version of its analysis)",
-         [](RouteContext& c, const PathParams& p) { get_model_frf(c, p.at("run_id")); },
+         [](RouteContext& c, const PathParams& p) { send_csv(c, model_frf_csv(*c.pool.acquire(), p.at("run_id"))); },
          {},
          "text/csv"});
+  t.add({"GET",
+         "/api/v1/runs/{run_id*}/fit_frf.csv",
+         Role::viewer,
+         "the modal fit's FRF on the run's grid, for the entries the fit used",
+         [](RouteContext& c, const PathParams& p) { send_csv(c, fit_frf_csv(*c.pool.acquire(), p.at("run_id"))); },
+         {},
+         "text/csv"})
+      .description =
+      "The rational model the analysis fitted (its fit_model.json) evaluated on the frequency grid of the run's "
+      "frf.csv: the curve the modes and damping ratios come from. 404 until the analysis is done, and for an "
+      "analysis made before fit_model.json was kept (the run's next analysis keeps it).";
 }
 
 }  // namespace ambdiag::server::detail

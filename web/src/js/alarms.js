@@ -3,6 +3,7 @@
 // each. alarmTable is shared with the pump view.
 import { get, post, seg, missingRoute } from './api.js';
 import { h, esc, fmtTime, sevHtml, errorBox, toast, debounce } from './dom.js';
+import { gatedButton, actionNote } from './roles.js';
 
 const STATES = ['unack_active', 'ack_active', 'unack_rtn', 'shelved', 'suppressed', 'out_of_service', 'normal'];
 const SEVERITIES = ['critical', 'high', 'medium', 'low'];
@@ -10,7 +11,7 @@ const STATE_TEXT = {
   unack_active: '▲ ACTIVE, UNACK',
   ack_active: '△ active, ack',
   unack_rtn: '▽ cleared, unack',
-  shelved: '⏸ shelved',
+  shelved: '‖ shelved', // U+2016: DejaVu Sans has it, not U+23F8's pause sign
   suppressed: '⊘ suppressed',
   out_of_service: '⊘ out of service',
   normal: 'normal',
@@ -63,8 +64,18 @@ async function history(alarm, cell) {
   cell.replaceChildren(t);
 }
 
-// The alarms as a table with their actions; `readOnly` hides them.
-export function alarmTable(alarms, { readOnly, onChange, showPump = true }) {
+// The acknowledge, shelve and unshelve buttons an alarm's state allows, as
+// the session's role allows them (roles.js: operator).
+function actions(a, session) {
+  const b = (act, what, label) => gatedButton(session, 'operator', what, `data-act="${act}"`, label);
+  return (
+    (a.state.startsWith('unack') ? b('ack', 'acknowledge', 'Ack') : '') +
+    (a.state === 'shelved' ? b('unshelve', 'unshelve', 'Unshelve') : a.state !== 'normal' ? b('shelve', 'shelve', 'Shelve') : '')
+  );
+}
+
+// The alarms as a table with the actions the session may take.
+export function alarmTable(alarms, { session, onChange, showPump = true }) {
   const t = h('table', { class: 'alarms' });
   t.innerHTML =
     `<thead><tr><th>severity</th><th>state</th>${showPump ? '<th>pump</th>' : ''}<th>rule</th><th>message</th><th>raised</th><th>cleared</th><th></th></tr></thead><tbody>` +
@@ -76,17 +87,14 @@ export function alarmTable(alarms, { readOnly, onChange, showPump = true }) {
           `<td>${esc(a.rule)}</td><td style="white-space:normal">${esc(a.message || '')}${a.fault ? ` <span class="tag">${esc(typeof a.fault === 'string' ? a.fault : a.fault.name || JSON.stringify(a.fault))}</span>` : ''}` +
           `${a.run_id ? ` <a href="#/run/${esc(encodeURIComponent(a.run_id))}">run</a>` : ''}</td>` +
           `<td>${esc(fmtTime(a.raised_at))}</td><td>${esc(a.cleared_at ? fmtTime(a.cleared_at) : '')}</td><td>` +
-          (readOnly
-            ? ''
-            : (a.state.startsWith('unack') ? '<button data-act="ack">Ack</button> ' : '') +
-              (a.state === 'shelved' ? '<button data-act="unshelve">Unshelve</button> ' : a.state !== 'normal' ? '<button data-act="shelve">Shelve</button> ' : '')) +
+          actions(a, session) +
           '<button data-act="history">History</button></td></tr>',
       )
       .join('') +
     '</tbody>';
   t.addEventListener('click', async (e) => {
     const b = e.target.closest('button[data-act]');
-    if (!b) return;
+    if (!b || b.disabled) return;
     const tr = b.closest('tr');
     const alarm = alarms[+tr.dataset.i];
     try {
@@ -99,7 +107,7 @@ export function alarmTable(alarms, { readOnly, onChange, showPump = true }) {
       }
       const after = await act(alarm, b.dataset.act);
       if (after) {
-        toast(`alarm ${alarm.alarm_id}: ${after.state || 'done'}`);
+        toast(`alarm ${alarm.alarm_id} (${alarm.pump_id}, ${alarm.rule}): ${STATE_TEXT[after.state] || after.state || 'done'}`);
         onChange?.();
       }
     } catch (err) {
@@ -139,10 +147,15 @@ export async function alarmsView({ main, crumbs, session }) {
       byState[a.state] = (byState[a.state] || 0) + 1;
     }
     counts.innerHTML =
-      SEVERITIES.map((s) => `<div class="box">${sevHtml(s)}<b>${bySev[s]}</b><span class="muted">active</span></div>`).join('') +
-      STATES.filter((s) => byState[s]).map((s) => `<div class="box"><span class="muted">${esc(s)}</span><b data-state-count="${esc(s)}">${byState[s]}</b></div>`).join('');
+      SEVERITIES.map((s) => `<div class="box">${sevHtml(s, bySev[s] === 0)}<b>${bySev[s]}</b><span class="muted">active</span></div>`).join('') +
+      STATES.filter((s) => byState[s]).map((s) => `<div class="box"><span class="muted">${esc(STATE_TEXT[s] || s)}</span><b data-state-count="${esc(s)}">${byState[s]}</b></div>`).join('');
     const shown = all.filter((a) => (state.value ? a.state === state.value : a.state !== 'normal') && (!sev.value || a.severity === sev.value));
-    box.replaceChildren(shown.length ? alarmTable(shown, { readOnly: session.mode !== 'token', onChange: load }) : h('p', { class: 'muted' }, 'No alarm in this selection.'));
+    box.replaceChildren(
+      shown.length
+        ? alarmTable(shown, { session, onChange: load })
+        : h('p', { class: 'muted' }, all.length ? 'No alarm in this selection.' : 'No alarm has been raised on this fleet yet.'),
+      shown.length ? actionNote(session, 'operator', 'acknowledge or shelve alarms') ?? '' : '',
+    );
   }
   state.addEventListener('change', () => load().catch((e) => box.replaceChildren(errorBox(e))));
   sev.addEventListener('change', () => load().catch((e) => box.replaceChildren(errorBox(e))));

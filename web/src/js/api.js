@@ -44,16 +44,25 @@ export const post = (path, body = {}) => call('POST', path, body);
 // resource" means this server does not have them yet.
 export const missingRoute = (e) => e instanceof ApiError && e.status === 404 && /no such resource/.test(e.message);
 
-// What the session may do: 'anonymous' (--anonymous-read, no token) or 'token'.
-// The role of a token is not told by the API; writes that need more answer
-// 403 naming the role, which the page shows.
-export async function probe() {
-  try {
-    await get('/api/v1/health');
-    await get('/api/v1/pumps');
-    return token.get() ? 'token' : 'anonymous';
-  } catch (e) {
-    if (e instanceof ApiError && e.status === 401) return 'login';
-    throw e;
-  }
+// Who the session is (GET /api/v1/me): {mode: 'token', name, role} for a
+// token, {mode: 'anonymous', role: 'viewer'} where the server lets requests
+// without one read (--anonymous-read), {mode: 'login'} otherwise. A refused
+// token is dropped; `refused` says so, and `anonymousOk` whether the views
+// could still open read-only.
+export async function whoAmI() {
+  const ask = async () => {
+    try {
+      return await get('/api/v1/me');
+    } catch (e) {
+      if (e instanceof ApiError && e.status === 401) return null;
+      throw e;
+    }
+  };
+  const hadToken = Boolean(token.get());
+  let me = await ask();
+  if (me) return { mode: me.anonymous ? 'anonymous' : 'token', name: me.name, role: me.role, anonymousOk: Boolean(me.anonymous) };
+  if (!hadToken) return { mode: 'login', anonymousOk: false };
+  token.set('');
+  me = await ask();
+  return { mode: 'login', refused: true, anonymousOk: Boolean(me) };
 }

@@ -31,8 +31,10 @@ export function fmtNum(x, digits = 3) {
   if (x === null || x === undefined || Number.isNaN(x)) return '–';
   if (typeof x !== 'number') return String(x);
   const a = Math.abs(x);
-  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return x.toExponential(digits - 1);
-  return x.toPrecision(digits).replace(/\.?0+$/, (m) => (m.includes('.') ? '' : m));
+  // Trailing zeros of the fraction only ("1.8000" -> "1.8", "2.19e+5", "100" stays).
+  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return x.toExponential(digits - 1).replace(/\.?0+e/, 'e');
+  const t = x.toPrecision(digits);
+  return t.includes('.') ? t.replace(/\.?0+$/, '') : t;
 }
 
 // Health as ISA-101 wants it: a word and a symbol, coloured only when abnormal.
@@ -42,13 +44,15 @@ const HEALTH = {
   alarm: ['ALARM', 'st-alarm', '▲ '],
   unknown: ['UNKNOWN', 'st-unknown', '? '],
 };
-export function healthHtml(health) {
+// `quiet`: the word in grey, for a count of zero (nothing abnormal to show).
+export function healthHtml(health, quiet = false) {
   const [word, cls, sym] = HEALTH[health] || HEALTH.unknown;
-  return `<span class="st ${cls}" data-health="${esc(health)}">${sym}${word}</span>`;
+  return `<span class="st ${quiet ? 'st-quiet' : cls}" data-health="${esc(health)}">${sym}${word}</span>`;
 }
 
 const SEV_SYM = { critical: '▲▲ ', high: '▲ ', medium: '◆ ', low: '▽ ' };
-export const sevHtml = (s) => `<span class="sev sev-${esc(s)}">${SEV_SYM[s] || ''}${esc(String(s).toUpperCase())}</span>`;
+export const sevHtml = (s, quiet = false) =>
+  `<span class="sev ${quiet ? 'st-quiet' : 'sev-' + esc(s)}">${SEV_SYM[s] || ''}${esc(String(s).toUpperCase())}</span>`;
 
 export function toast(msg, ms = 4000) {
   const box = document.getElementById('toast');

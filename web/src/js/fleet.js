@@ -98,7 +98,10 @@ export class FleetTable {
     const keyed = rows.map((p) => [val(p), p]);
     keyed.sort((a, b) => (a[0] < b[0] ? -dir : a[0] > b[0] ? dir : a[1].pump_id < b[1].pump_id ? -1 : 1));
     this.rows = keyed.map(([, p]) => p);
-    for (const th of this.table.tHead.rows[0].cells) th.className = th.dataset.sort === key ? (dir > 0 ? 'asc' : 'desc') : '';
+    for (const th of this.table.tHead.rows[0].cells) {
+      th.classList.toggle('asc', th.dataset.sort === key && dir > 0);
+      th.classList.toggle('desc', th.dataset.sort === key && dir < 0);
+    }
     this.shown = rows.length;
     this.paint();
     this.renderMs = performance.now() - t0;
@@ -127,7 +130,7 @@ function summary(pumps) {
   return (
     `<div class="box"><span class="muted">pumps</span><b>${pumps.length}</b></div>` +
     ['alarm', 'warning', 'unknown', 'ok']
-      .map((k) => `<div class="box">${healthHtml(k)}<b data-count="${k}">${n[k]}</b></div>`)
+      .map((k) => `<div class="box">${healthHtml(k, n[k] === 0)}<b data-count="${k}">${n[k]}</b></div>`)
       .join('') +
     `<div class="box"><span class="muted">active alarms</span><b>${alarms}</b></div>`
   );
@@ -155,7 +158,9 @@ export async function fleetView({ main, crumbs }) {
     ...['alarm', 'warning', 'unknown', 'ok'].map((k) => h('option', { value: k }, k)));
   const info = h('span', { class: 'muted', id: 'fleet-info' });
   const scroll = h('div', { class: 'scroll' });
-  main.append(h('h1', {}, 'Fleet'), sum, h('div', { class: 'row panel' }, text, health, info), scroll);
+  const empty = h('p', { class: 'note', id: 'fleet-empty', hidden: true },
+    'No pump yet. A pump appears once its model is registered (PUT /api/v1/pumps/{pump_id}/model) or its agent streams a run.');
+  main.append(h('h1', {}, 'Fleet'), sum, h('div', { class: 'row panel' }, text, health, info), empty, scroll);
   const table = new FleetTable(scroll);
   const apply = () => {
     table.filter = { text: text.value.trim(), health: health.value };
@@ -169,6 +174,8 @@ export async function fleetView({ main, crumbs }) {
     const [{ pumps }, worst] = await Promise.all([get('/api/v1/fleet'), worstSeverity()]);
     for (const p of pumps) p.worst_severity = worst.get(p.pump_id);
     sum.innerHTML = summary(pumps);
+    empty.hidden = pumps.length > 0;
+    scroll.hidden = pumps.length === 0;
     table.pumps = pumps;
     apply();
   }

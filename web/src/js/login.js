@@ -3,10 +3,17 @@
 import { token } from './api.js';
 import { h } from './dom.js';
 
-export function loginView({ main, crumbs }, onSignedIn) {
+export function loginView({ main, crumbs, session }, onSignedIn) {
   crumbs([['Sign in']]);
   const input = h('input', { type: 'password', id: 'token', autocomplete: 'off', placeholder: 'token', 'aria-label': 'token' });
-  const msg = h('p', { class: 'muted' }, 'A token from `ambdiag token add`. It is kept for this browser tab only.');
+  const msg = session.refused
+    ? h('p', { class: 'error' }, 'The token was refused (unknown or revoked).')
+    : h('p', { class: 'muted' }, 'A token from `ambdiag token add`. It is kept for this browser tab only.');
+  // Where the server lets requests without a token read (--anonymous-read).
+  const readOnly =
+    session.mode === 'anonymous' || session.anonymousOk
+      ? h('p', {}, h('button', { type: 'button', id: 'read-only', onclick: () => onSignedIn() }, 'Continue read-only, without signing in'))
+      : null;
   const form = h(
     'form',
     {
@@ -21,9 +28,8 @@ export function loginView({ main, crumbs }, onSignedIn) {
     input,
     h('button', { type: 'submit', id: 'sign-in' }, 'Sign in'),
     msg,
+    readOnly,
   );
-  if (token.get()) msg.replaceWith(h('p', { class: 'error' }, 'The token was refused (unknown or revoked).'));
-  token.set('');
   main.append(form);
   input.focus();
   return {};

@@ -5,6 +5,7 @@ import { get, seg, missingRoute } from './api.js';
 import { h, esc, fmtTime, fmtNum, healthHtml, errorBox, debounce } from './dom.js';
 import { trendChart, limitLines } from './charts.js';
 import { alarmTable, fetchAlarms } from './alarms.js';
+import { actionNote } from './roles.js';
 
 const toS = (iso) => Date.parse(iso) / 1000;
 
@@ -45,6 +46,8 @@ async function trendsSection(pumpId, box) {
     if (missingRoute(e)) return box.replaceChildren(h('p', { class: 'note' }, 'This server has no trends yet (rest.md "Trends", issue 19).'));
     throw e;
   }
+  if (!list.length)
+    return box.replaceChildren(h('p', { class: 'muted' }, 'No series yet: trends come from analysed identification runs (the pump needs a model) and monitoring snapshots.'));
   const names = list.map((s) => s.name);
   const chosen = new Set(defaultSeries(names));
   const range = h('select', { id: 'trend-range', 'aria-label': 'range' },
@@ -131,7 +134,7 @@ async function prognosisSection(pumpId, box) {
   for (const s of list) {
     try {
       const p = await get(`/api/v1/pumps/${seg(pumpId)}/prognosis?series=${encodeURIComponent(s.name)}`);
-      box.append(h('p', {}, h('b', {}, s.name), ` to ${fmtNum(p.limit, 3)}: ${p.status}` +
+      box.append(h('p', {}, h('b', {}, s.name), ` reaching ${fmtNum(p.limit, 3)}: ${p.status}` +
         (p.estimated_at ? `, estimated ${fmtTime(p.estimated_at)}` : '') +
         (p.interval ? ` (${Math.round(100 * p.interval.level)} %: ${fmtTime(p.interval.from)} … ${fmtTime(p.interval.to)})` : '') +
         (p.reason ? ` (${p.reason})` : '')));
@@ -140,6 +143,7 @@ async function prognosisSection(pumpId, box) {
 }
 
 function runsTable(runs) {
+  if (!runs.length) return h('p', { class: 'muted' }, 'No run received yet.');
   const t = h('table', { id: 'runs' });
   const rows = runs.slice(-300).reverse();
   t.innerHTML =
@@ -176,8 +180,9 @@ export async function pumpView({ main, crumbs, session }, pumpId) {
     if (list === null) return alarmsBox.replaceChildren(h('p', { class: 'note' }, 'This server has no alarms yet (rest.md "Alarms").'));
     const open = list.filter((a) => a.state !== 'normal');
     alarmsBox.replaceChildren(
-      open.length ? alarmTable(open, { readOnly: session.mode !== 'token', onChange: refresh, showPump: false }) : h('p', { class: 'muted' }, 'No open alarm.'),
+      open.length ? alarmTable(open, { session, onChange: refresh, showPump: false }) : h('p', { class: 'muted' }, 'No open alarm.'),
       list.length > open.length ? h('p', { class: 'muted' }, `${list.length - open.length} returned to normal (see Alarms)`) : '',
+      open.length ? actionNote(session, 'operator', 'acknowledge or shelve alarms') ?? '' : '',
     );
   }
   async function refresh() {
@@ -185,15 +190,18 @@ export async function pumpView({ main, crumbs, session }, pumpId) {
     await loadAlarms();
   }
   showHead(pump);
-  const [trends] = await Promise.all([
-    trendsSection(pumpId, trendBox).catch((e) => trendBox.replaceChildren(errorBox(e))),
+  const showTrends = () => trendsSection(pumpId, trendBox).catch((e) => trendBox.replaceChildren(errorBox(e)));
+  let [trends] = await Promise.all([
+    showTrends(),
     loadAlarms().catch((e) => alarmsBox.replaceChildren(errorBox(e))),
     prognosisSection(pumpId, progBox),
   ]);
   if (!progBox.childElementCount) progBox.append(h('p', { class: 'muted' }, 'No fault parameter with a trend to forecast.'));
   const reload = debounce(() => {
     refresh().catch(() => {});
-    trends?.redraw?.().catch(() => {});
+    // The first series of a pump that had none come with its first analysis.
+    if (trends?.redraw) trends.redraw().catch(() => {});
+    else showTrends().then((t) => (trends = t));
   }, 800);
   return {
     onEvent: (ev) => (!ev.data?.pump_id || ev.data.pump_id === pumpId) && reload(),
@@ -208,6 +216,7 @@ function modelsPanel(pump, models) {
   const ref = pump.reference;
   return h('div', { class: 'row' },
     h('div', {}, h('b', {}, 'Models'),
+      models.length ? null : h('p', { class: 'muted' }, 'none: the pump is not analysed until an engineer registers its model'),
       h('ul', {}, ...models.slice().reverse().map((m) => h('li', {}, `v${m.model_version} ${fmtTime(m.created_at)} by ${m.created_by || '–'}${m.comment ? ': ' + m.comment : ''}${m.model_version === pump.model_version ? ' (current)' : ''}`)))),
     h('div', {}, h('b', {}, 'Reference'),
       ref

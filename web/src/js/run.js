@@ -5,7 +5,8 @@
 import { get, getText, getBlob, post, seg } from './api.js';
 import { h, esc, fmtTime, fmtNum, errorBox } from './dom.js';
 import { parseFrf, entryMagPhase } from './frf.js';
-import { bodeCharts } from './charts.js';
+import { bodeCharts } from './bode.js';
+import { gate, actionNote } from './roles.js';
 
 const kv = (pairs) => h('dl', { class: 'kv' }, ...pairs.flatMap(([k, v]) => [h('dt', {}, k), h('dd', {}, v)]));
 const pm = (v, sd, d = 4) => (v === undefined ? '–' : sd ? `${fmtNum(v, d)} ± ${fmtNum(sd, 2)}` : fmtNum(v, d));
@@ -120,25 +121,35 @@ function entryPicker(frf, selected, onChange) {
   return grid;
 }
 
-export function drawBode(magEl, phaseEl, measured, model, selected, logX) {
+export function drawBode(magEl, phaseEl, measured, model, fit, selected, logX) {
   const entries = [];
   for (const key of selected) {
     const [o, i] = key.split('|');
     const m = entryMagPhase(measured, o, i);
     if (!m) continue;
     const mm = model ? entryMagPhase(model, o, i) : null;
-    entries.push({ label: `${o}/${i}`, mag: m.mag, phase: m.phase, model_mag: mm?.mag, model_phase: mm?.phase });
+    const fm = fit ? entryMagPhase(fit, o, i) : null;
+    entries.push({ label: `${o}/${i}`, mag: m.mag, phase: m.phase, model_mag: mm?.mag, model_phase: mm?.phase, fit_mag: fm?.mag, fit_phase: fm?.phase });
   }
   magEl.replaceChildren();
   phaseEl.replaceChildren();
-  return bodeCharts(magEl, phaseEl, measured.f, entries, { logX });
+  return bodeCharts(magEl, phaseEl, measured.f, entries, { logX, unit: measured.meta.unit || 'm/N' });
+}
+
+// A curve of the FRF section that may be missing: its parsed file, or the
+// reason it is not drawn (shown under the legend).
+async function optionalFrf(url) {
+  try {
+    return { frf: parseFrf(await getText(url)) };
+  } catch (e) {
+    return { why: e.message };
+  }
 }
 
 async function frfSection(base, box) {
   box.append(h('p', { class: 'muted' }, 'Loading the FRFs…'));
-  const [text, modelText] = await Promise.all([getText(base + '/frf.csv'), getText(base + '/model_frf.csv').catch(() => null)]);
+  const [text, model, fit] = await Promise.all([getText(base + '/frf.csv'), optionalFrf(base + '/model_frf.csv'), optionalFrf(base + '/fit_frf.csv')]);
   const measured = parseFrf(text);
-  const model = modelText ? parseFrf(modelText) : null;
   const outs = [...new Set(measured.entries.map((e) => e.output))];
   const ins = [...new Set(measured.entries.map((e) => e.input))];
   const selected = new Set();
@@ -147,15 +158,21 @@ async function frfSection(base, box) {
   const magEl = h('div', { id: 'bode-mag', class: 'chart' });
   const phaseEl = h('div', { id: 'bode-phase', class: 'chart' });
   const logX = h('input', { type: 'checkbox', id: 'bode-logx' });
-  const redraw = () => drawBode(magEl, phaseEl, measured, model, selected, logX.checked);
+  const redraw = () => drawBode(magEl, phaseEl, measured, model.frf, fit.frf, selected, logX.checked);
   logX.addEventListener('change', redraw);
+  const missing = [model.why && `model: ${model.why}`, fit.why && `fit: ${fit.why}`].filter(Boolean);
   box.replaceChildren(
     h('div', { class: 'row' },
       entryPicker(measured, selected, redraw),
-      h('div', {},
-        h('p', {}, h('span', { class: 'legend-line' }), 'measured', h('span', { class: 'legend-line dash' }), model ? 'model (same colour, dashed)' : 'model FRF not available'),
+      h('div', { id: 'bode-key' },
+        h('p', {},
+          h('span', { class: 'legend-line' }), 'measured',
+          h('span', { class: 'legend-line dash' }), 'model at the run\'s speed',
+          h('span', { class: 'legend-line dot' }), 'modal fit (the modes of the table below)',
+          h('span', { class: 'muted' }, ' (each entry in its own colour)')),
+        missing.length ? h('p', { class: 'note' }, 'Not drawn: ', missing.join('; ')) : null,
         h('label', {}, logX, ' log frequency axis'),
-        h('p', { class: 'muted' }, `${measured.f.length} lines, ${fmtNum(measured.f[0], 3)} … ${fmtNum(measured.f[measured.f.length - 1], 4)} Hz; drag to zoom, double-click to reset`))),
+        h('p', { class: 'muted' }, `${measured.f.length} lines, ${fmtNum(measured.f[0], 3)} … ${fmtNum(measured.f[measured.f.length - 1], 4)} Hz; phase wrapped to ±180° (gaps at the wraps); drag to zoom, double-click to reset; click a legend entry to hide its curve`))),
     magEl,
     phaseEl,
   );
@@ -168,9 +185,15 @@ async function figure(url, alt) {
 }
 
 // POST explain, poll its job, show the report and the fit before / after.
-function explainSection(runId, box) {
+function explainSection(runId, box, session) {
   const out = h('div', { id: 'explain-report' });
-  const btn = h('button', { type: 'button', id: 'explain' }, 'Explain the difference to the model');
+  const allowed = gate(session, 'engineer', 'explain');
+  const note = actionNote(session, 'engineer', 'run explain');
+  if (!allowed) {
+    box.append(note);
+    return () => {};
+  }
+  const btn = h('button', { type: 'button', id: 'explain', ...allowed }, 'Explain the difference to the model');
   let timer = null;
   btn.addEventListener('click', async () => {
     btn.disabled = true;
@@ -194,44 +217,55 @@ function explainSection(runId, box) {
       out.replaceChildren(errorBox(e));
     }
   });
-  box.append(btn, out);
+  box.append(btn, note ?? '', out);
   return () => clearTimeout(timer);
 }
+
+// An explanation's location ({"link": "coupling", "node": 0}) as words.
+const placeText = (loc) =>
+  loc && typeof loc === 'object'
+    ? Object.entries(loc).map(([k, v]) => `${k} ${[].concat(v).join(', ')}`).join(', ')
+    : String(loc ?? '');
 
 async function explainReport(j) {
   const r = j.result || {};
   const parts = [
     kv([
-      ['fit before (NRMSE)', fmtNum(r.nrmse_before, 4)],
-      ['fit after (NRMSE)', fmtNum(r.nrmse_after, 4)],
-      ['mismatches', String((r.mismatches || []).length)],
-      ['unexplained', String((r.unexplained || []).length)],
+      ['NRMSE model vs measured, before', fmtNum(r.nrmse_before, 4)],
+      ['after, with the corrected model', fmtNum(r.nrmse_after, 4)],
+      ['mismatches beyond the noise', String((r.mismatches || []).length)],
+      ['left unexplained', String((r.unexplained || []).length)],
     ]),
   ];
+  // Explain reports what it found even where its corrections do not pay off; say so.
+  if (r.nrmse_after > r.nrmse_before)
+    parts.push(h('p', { class: 'note', id: 'explain-worse' }, '◆ The corrected model matches this run less well than the current one (NRMSE rose): read its findings as candidates, do not adopt it.'));
   if (Array.isArray(r.story) && r.story.length) parts.push(h('ul', { class: 'story' }, ...r.story.map((line) => h('li', {}, line))));
   if (r.updated_parameters?.length) {
     const t = h('table', { id: 'updated-parameters' });
     t.innerHTML =
-      '<thead><tr><th>model parameter</th><th class="num">from</th><th class="num">to</th></tr></thead><tbody>' +
-      r.updated_parameters.map((u) => `<tr><td>${esc(u.path)}</td><td class="num">${fmtNum(u.from, 5)}</td><td class="num">${fmtNum(u.to, 5)}</td></tr>`).join('') +
+      '<thead><tr><th>model parameter</th><th class="num">from</th><th class="num">to</th><th class="num">factor</th></tr></thead><tbody>' +
+      r.updated_parameters
+        .map((u) => `<tr><td>${esc(u.path)}</td><td class="num">${fmtNum(u.from, 5)}</td><td class="num">${fmtNum(u.to, 5)}</td><td class="num">×${u.from ? fmtNum(u.to / u.from, 3) : '–'}</td></tr>`)
+        .join('') +
       '</tbody>';
     parts.push(h('h2', {}, 'Parameters corrected'), t);
   }
   if (r.explanations?.length) {
-    const t = h('table', { id: 'explanations' });
+    const t = h('table', { id: 'explanations', class: 'wrap' });
     t.innerHTML =
       '<thead><tr><th>physics</th><th>parameters</th><th>location</th><th class="num">NRMSE before</th><th class="num">after</th><th>evidence</th></tr></thead><tbody>' +
       r.explanations
-        .map((x) => `<tr><td>${esc(x.physics)}</td><td>${esc(paramText(x.parameters))}</td><td>${esc(JSON.stringify(x.location || ''))}</td><td class="num">${fmtNum(x.nrmse_before, 4)}</td><td class="num">${fmtNum(x.nrmse_after, 4)}</td><td>${esc(typeof x.evidence === 'string' ? x.evidence : JSON.stringify(x.evidence ?? ''))}</td></tr>`)
+        .map((x) => `<tr><td>${esc(x.physics)}</td><td>${esc(paramText(x.parameters))}</td><td>${esc(placeText(x.location))}</td><td class="num">${fmtNum(x.nrmse_before, 4)}</td><td class="num">${fmtNum(x.nrmse_after, 4)}</td><td>${esc(typeof x.evidence === 'string' ? x.evidence : JSON.stringify(x.evidence ?? ''))}</td></tr>`)
         .join('') +
       '</tbody>';
-    parts.push(t);
+    parts.push(h('h2', {}, 'Missing physics: candidates'), t);
   }
-  if (j.files?.['explain.svg']) parts.push(await figure(j.files['explain.svg'], 'explain: fit before and after'));
+  if (j.files?.['explain.svg']) parts.push(h('h2', {}, 'Measured vs model before and after'), await figure(j.files['explain.svg'], 'explain: measured, model before and improved model'));
   return parts;
 }
 
-export async function runView({ main, crumbs }, runId) {
+export async function runView({ main, crumbs, session }, runId) {
   const base = `/api/v1/runs/${seg(runId)}`;
   const [run, a] = await Promise.all([get(base), get(base + '/analysis')]);
   crumbs([['Fleet', '#/fleet'], [run.pump_id, '#/pump/' + encodeURIComponent(run.pump_id)], [runId]]);
@@ -260,14 +294,14 @@ export async function runView({ main, crumbs }, runId) {
   const dg = diagnosisPanel(a.diagnosis);
   if (dg) main.append(h('div', { class: 'panel' }, dg));
   const frfBox = h('div', { class: 'panel', id: 'frf' });
-  main.append(h('h2', {}, 'FRF: measured vs model'), frfBox);
+  main.append(h('h2', {}, 'FRF: measured vs model vs modal fit'), frfBox);
   const modalBox = h('div', { class: 'panel' });
   main.append(h('h2', {}, 'Modes: reference vs actual'), modalBox);
   const explainBox = h('div', { class: 'panel' });
   main.append(h('h2', {}, 'Explain'), explainBox);
   const figs = h('div', { class: 'panel' });
   if (a.files?.['diagnosis.svg']) main.append(h('h2', {}, 'Diagnosis figure'), figs);
-  const stopExplain = explainSection(runId, explainBox);
+  const stopExplain = explainSection(runId, explainBox, session);
   await Promise.all([
     frfSection(base, frfBox).catch((e) => frfBox.replaceChildren(errorBox(e))),
     referenceModes(pump)

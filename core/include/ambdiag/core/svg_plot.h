@@ -45,6 +45,12 @@ struct SvgFigure {
 // The figure as an SVG document (UTF-8 text).
 std::string render_svg(const SvgFigure& figure);
 
+// Breaks the series' line (a NaN point between the two) wherever
+// consecutive y values differ by more than `max_jump`: a phase wrapped to
+// +-180 deg jumps by about 360 at each wrap, which a line would draw as a
+// stroke across the whole panel.
+void break_at_jumps(SvgSeries& series, double max_jump);
+
 // Tick values covering [lo, hi] with steps of 1, 2 or 5 x 10^k, about
 // `target` of them; the first tick is <= lo and the last >= hi.
 std::vector<double> nice_ticks(double lo, double hi, int target = 6);
