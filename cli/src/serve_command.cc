@@ -131,7 +131,7 @@ int run_serve(const std::vector<std::string>& argv) {
 
   // No lock on the file: several servers share it, ingest groups decide
   // which one ingests (docs/streaming.md) and job leases which one runs a
-  // job (docs/service.md "Several servers").
+  // job (docs/service.md "Several servers"); a PostgreSQL database the same.
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs; the
   // checkpoints also say which commits are durable (docs/storage.md).
@@ -199,7 +199,8 @@ int run_serve(const std::vector<std::string>& argv) {
     rest.emplace(rest_opt);
     bound_port = rest->start();
   }
-  std::fprintf(stderr, "ambdiag serve: instance %s, parts %s, historian %s", instance.c_str(), parts.text().c_str(), db->c_str());
+  std::fprintf(stderr, "ambdiag serve: instance %s, parts %s, historian %s", instance.c_str(), parts.text().c_str(),
+               storage::display_location(*db).c_str());
   if (ingest_group)
     std::fprintf(stderr, ", DDS domain %d, ingest group %s (partitions %s)", opt.domain, group_opt.group.c_str(),
                  ingest_group->status().partitions.c_str());
@@ -277,6 +278,8 @@ std::vector<Command> serve_commands() {
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
            "requests without one read as viewer.\n"
+           "FILE may be a PostgreSQL database instead: --db postgresql://USER@HOST/DB (a libpq URI;\n"
+           "  docs/storage.md \"PostgreSQL\"), created there at the first start.\n"
            "--ingest-group NAME (default: default): servers naming one group on one database ingest its partitions\n"
            "  (--partition SITE: SITE,SITE/*; or --ingest-partitions P1,P2 of DDS partition names or patterns; default *)\n"
            "  one at a time: the holder renews a lease of S seconds (--ingest-lease, default 3), a standby takes over\n"

@@ -26,6 +26,11 @@ std::int64_t Historian::append_event(const std::string& type, const std::string&
   if (data_json.find_first_of("\r\n") != std::string::npos)
     throw InputError("append_event " + quoted(type) + ": the data must be one line of JSON");
   Transaction tx(impl_->db, Transaction::Kind::write);
+  // PostgreSQL hands seqs out at the INSERT but transactions commit in any
+  // order: seq 11 could be visible before 10, and a tail that read up to 11
+  // would never see 10. Held until the commit, the lock makes the events
+  // commit in seq order (SQLite: BEGIN IMMEDIATE already did).
+  impl_->lock(Impl::LockSpace::events, "");
   const std::string now = now_utc();  // inside: time grows with seq (prune_events relies on it)
   auto& ins = impl_->stmt("INSERT INTO events (time, type, pump_id, data) VALUES (?, ?, ?, ?) RETURNING seq");
   ins.bind(1, now).bind(2, type).bind(3, pump_id).bind(4, data_json);
@@ -80,7 +85,13 @@ std::vector<StoredEvent> Historian::recent_events(int limit) {
 
 std::int64_t Historian::last_event_seq() {
   // The sequence itself, not max(seq): pruning may have emptied the table.
-  auto& s = impl_->stmt("SELECT coalesce((SELECT seq FROM sqlite_sequence WHERE name = 'events'), 0)");
+  // PostgreSQL: a sequence is outside transactions and its value may be an
+  // append not yet committed, so the newest event the snapshot sees, and
+  // only for an empty table the sequence, less the one that may be in
+  // flight (appends hold their lock from nextval to commit: one at most).
+  auto& s = impl_->dialect() == Dialect::postgres
+                ? impl_->stmt("SELECT coalesce((SELECT max(seq) FROM events), (SELECT last_value - 1 FROM events_seq_seq))")
+                : impl_->stmt("SELECT coalesce((SELECT seq FROM sqlite_sequence WHERE name = 'events'), 0)");
   s.step();
   const auto seq = s.col_int(0);
   s.reset();

@@ -13,10 +13,10 @@
 // IMMEDIATE), so connections of several processes on one file claim, finish
 // and enqueue without a race: SQLite serialises the writers (busy timeout)
 // and every check is re-done inside.
-//
-// PostgreSQL (docs/storage.md "Schema v8"): claim_job's pick becomes
-// SELECT ... FOR UPDATE SKIP LOCKED; the fenced updates and the requeue are
-// plain SQL as they are.
+// On PostgreSQL writers run at once: a claim locks the row it takes and
+// skips those others hold (FOR UPDATE OF j SKIP LOCKED), the enqueue relies
+// on the key's unique constraint, and the fenced updates re-check their
+// WHERE on the row they lock (docs/storage.md "Schema v8").
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -114,9 +114,11 @@ std::pair<std::int64_t, bool> Historian::enqueue_job(const JobKey& key, const st
     if (!d.step()) throw InputError("enqueue_job " + quoted(key.kind) + ": depends on unknown " + job_ref(*depends_on));
     d.reset();
   }
+  // A writer of another process may enqueue the same key meanwhile
+  // (PostgreSQL): then its job is the one, found below.
   auto& ins = impl_->stmt(
       "INSERT INTO jobs (kind, pump_id, run_id, model_version, reference_version, status, params, depends_on, "
-      "created_at) VALUES (?, ?, ?, ?, ?, 'queued', ?, ?, ?) RETURNING job_id");
+      "created_at) VALUES (?, ?, ?, ?, ?, 'queued', ?, ?, ?) ON CONFLICT DO NOTHING RETURNING job_id");
   ins.bind(1, key.kind)
       .bind(2, key.pump_id)
       .bind(3, key.run_id)
@@ -128,7 +130,12 @@ std::pair<std::int64_t, bool> Historian::enqueue_job(const JobKey& key, const st
     ins.bind(7, *depends_on);
   else
     ins.bind_null(7);
-  if (!ins.step()) throw StorageError("enqueue_job: the insert returned no job_id");
+  if (!ins.step()) {
+    auto held = find_job(key);
+    if (!held) throw StorageError("enqueue_job: the insert returned no job_id");
+    tx.commit();
+    return {held->job_id, false};
+  }
   const std::int64_t id = ins.col_int(0);
   ins.reset();
   tx.commit();
@@ -145,11 +152,21 @@ std::optional<Job> Historian::claim_job(const std::string& worker, const std::ve
   // failed or was cancelled fails in turn (its own dependents next time
   // round), and the search goes on.
   for (;;) {
-    auto& pick = impl_->stmt(
-        "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = j.depends_on "
-        "WHERE j.status = 'queued' AND (?1 IS NULL OR j.kind IN (SELECT value FROM json_each(?1))) "
-        "AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
-        "ORDER BY j.job_id LIMIT 1");
+    // PostgreSQL: the row is locked for this claim, and rows other claims
+    // hold are skipped (their claimers will have taken them when they
+    // commit); the kinds are a JSON array for both (json_each or
+    // json_array_elements_text).
+    auto& pick = impl_->dialect() == Dialect::postgres
+                     ? impl_->stmt(
+                           "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_array_elements_text(CAST(?1 AS json))) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN "
+                           "('done', 'failed', 'cancelled')) ORDER BY j.job_id LIMIT 1 FOR UPDATE OF j SKIP LOCKED")
+                     : impl_->stmt(
+                           "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_each(?1)) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
+                           "ORDER BY j.job_id LIMIT 1");
     if (kinds.empty())
       pick.bind_null(1);
     else
@@ -337,15 +354,17 @@ int Historian::cancel_superseded_jobs(const std::string& pump_id, const std::str
                                       int reference_version) {
   impl_->require_writer("cancel_superseded_jobs");
   Transaction tx(impl_->db, Transaction::Kind::write);
+  const std::string error = "superseded by model version " + std::to_string(model_version) + ", reference version " +
+                            std::to_string(reference_version);
   impl_->stmt(
-          "UPDATE jobs SET status = 'cancelled', finished_at = ?1, "
-          "error = 'superseded by model version ' || ?4 || ', reference version ' || ?5 "
+          "UPDATE jobs SET status = 'cancelled', finished_at = ?1, error = ?6 "
           "WHERE pump_id = ?2 AND kind = ?3 AND status = 'queued' AND (model_version < ?4 OR reference_version < ?5)")
       .bind(1, now_utc())
       .bind(2, pump_id)
       .bind(3, kind)
       .bind(4, std::int64_t{model_version})
       .bind(5, std::int64_t{reference_version})
+      .bind(6, error)
       .run();
   const int n = impl_->db.changes();
   tx.commit();
@@ -396,7 +415,7 @@ std::vector<Job> Historian::list_jobs(const JobFilter& filter) {
   // One statement per leading key, so that the planner walks that key's
   // index (newest first) and the other conditions only filter.
 #define AMBDIAG_JOB_FILTERS \
-  "(?1 IS NULL OR run_id = ?1) AND (?2 IS NULL OR pump_id = ?2) AND (?3 IS NULL OR kind = ?3) AND (?4 IS NULL OR status = ?4)"
+  "(run_id = ?1 OR ?1 IS NULL) AND (pump_id = ?2 OR ?2 IS NULL) AND (kind = ?3 OR ?3 IS NULL) AND (status = ?4 OR ?4 IS NULL)"
   auto& s = filter.run_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE run_id = ?1 AND " AMBDIAG_JOB_FILTERS
                                         " ORDER BY job_id DESC LIMIT ?5")
             : filter.pump_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE pump_id = ?2 AND " AMBDIAG_JOB_FILTERS

@@ -9,11 +9,6 @@ namespace ambdiag::storage::detail {
 
 namespace {
 
-struct Migration {
-  int version;
-  const char* sql;
-};
-
 // Append only: a released migration is never edited, a change is a new one.
 // STRICT tables make SQLite refuse values of the wrong type.
 constexpr Migration kMigrations[] = {
@@ -389,7 +384,7 @@ VALUES ('events', CAST((julianday('now') - 2440587.5) * 86400000000.0 AS INTEGER
 };
 
 int pragma_int(Db& db, const char* sql) {
-  Stmt s(db, sql);
+  SqliteStmt s(db, sql);
   return s.step() ? static_cast<int>(s.col_int(0)) : 0;
 }
 
@@ -404,7 +399,7 @@ void set_pragmas(Db& db, bool read_only) {
     // SQLite's default 4 KiB pages. 64 KiB pages made inserts of 30 KiB
     // chunks 2.3x faster; they were turned off for a REST hang that turned
     // out not to be SQLite's (docs/storage.md, page_size).
-    Stmt wal(db, "PRAGMA journal_mode = WAL");
+    SqliteStmt wal(db, "PRAGMA journal_mode = WAL");
     if (!wal.step() || wal.col_text(0) != "wal")
       throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");
   }

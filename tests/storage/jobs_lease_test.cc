@@ -8,7 +8,7 @@
 #include <thread>
 
 #include "ambdiag/storage/historian.h"
-#include "sqlite_raw.h"
+#include "historian_fixture.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -16,7 +16,8 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
+class JobLeaseTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(JobLeaseTest);
 
 std::int64_t enqueue(Historian& h, const std::string& run_id) {
   return h.enqueue_job(JobKey{"analysis", "P-1", run_id, 1, 0}).first;
@@ -36,8 +37,8 @@ double ms_until(const std::string& iso) {
   return std::chrono::duration<double, std::milli>(t - std::chrono::system_clock::now()).count();
 }
 
-TEST(JobLeases, AClaimHoldsItsJobForTheLeaseAndARenewalExtendsIt) {
-  auto h = Historian::open(db_path());
+TEST_P(JobLeaseTest, AClaimHoldsItsJobForTheLeaseAndARenewalExtendsIt) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, "r1");
   const auto job = h.claim_job("host:1/worker-0", {}, 2000ms);
   ASSERT_TRUE(job);
@@ -49,7 +50,7 @@ TEST(JobLeases, AClaimHoldsItsJobForTheLeaseAndARenewalExtendsIt) {
   EXPECT_FALSE(h.renew_job_lease(id, job->attempts + 1, 8000ms));  // no such attempt
   // A live lease is not requeued, from this connection or another one.
   EXPECT_EQ(h.requeue_expired_jobs().requeued, 0);
-  auto other = Historian::open(h.path());
+  auto other = Historian::open(location());
   EXPECT_EQ(other.requeue_expired_jobs().requeued, 0);
   EXPECT_EQ(h.find_job(id)->status, JobStatus::running);
   // Done: the lease is gone with the attempt.
@@ -58,11 +59,11 @@ TEST(JobLeases, AClaimHoldsItsJobForTheLeaseAndARenewalExtendsIt) {
   EXPECT_FALSE(h.renew_job_lease(id, job->attempts));
 }
 
-TEST(JobLeases, RenewalsKeepAJobPastManyLeases) {
-  auto h = Historian::open(db_path());
+TEST_P(JobLeaseTest, RenewalsKeepAJobPastManyLeases) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, "r1");
   const auto job = h.claim_job("w", {}, 150ms);
-  auto reaper = Historian::open(h.path());  // another process' requeue, every few ms
+  auto reaper = Historian::open(location());  // another process' requeue, every few ms
   for (int i = 0; i < 12; ++i) {
     std::this_thread::sleep_for(40ms);
     ASSERT_TRUE(h.renew_job_lease(id, job->attempts, 150ms)) << i;
@@ -76,8 +77,8 @@ TEST(JobLeases, RenewalsKeepAJobPastManyLeases) {
 // The worker was killed or paused: its lease runs out. From then on it
 // holds nothing, even while the job still shows `running` with its number,
 // and the next requeue gives the job to another worker.
-TEST(JobLeases, AnExpiredAttemptIsRefusedBeforeAndAfterTheRequeue) {
-  auto h = Historian::open(db_path());
+TEST_P(JobLeaseTest, AnExpiredAttemptIsRefusedBeforeAndAfterTheRequeue) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, "r1");
   const auto first = h.claim_job("paused", {}, 100ms);
   ASSERT_TRUE(first);
@@ -93,7 +94,7 @@ TEST(JobLeases, AnExpiredAttemptIsRefusedBeforeAndAfterTheRequeue) {
   EXPECT_FALSE(h.find_job(id)->result_json);
   EXPECT_TRUE(h.list_artifacts(id).empty());
 
-  auto other = Historian::open(h.path());  // another analysis process
+  auto other = Historian::open(location());  // another analysis process
   const auto r = other.requeue_expired_jobs();
   EXPECT_EQ(r.requeued, 1);
   EXPECT_EQ(r.failed, 0);
@@ -115,8 +116,8 @@ TEST(JobLeases, AnExpiredAttemptIsRefusedBeforeAndAfterTheRequeue) {
   EXPECT_EQ(h.requeue_expired_jobs().requeued, 0);
 }
 
-TEST(JobLeases, AJobWhoseLeaseExpiresAtEachOfThreeAttemptsFails) {
-  auto h = Historian::open(db_path());
+TEST_P(JobLeaseTest, AJobWhoseLeaseExpiresAtEachOfThreeAttemptsFails) {
+  auto h = Historian::open(location());
   const auto poison = enqueue(h, "poison");
   for (int attempt = 1; attempt <= 3; ++attempt) {
     const auto claimed = h.claim_job("w" + std::to_string(attempt), {}, 30ms);
@@ -134,8 +135,8 @@ TEST(JobLeases, AJobWhoseLeaseExpiresAtEachOfThreeAttemptsFails) {
   EXPECT_FALSE(h.claim_job("w4"));
 }
 
-TEST(JobLeases, AReleasedJobIsQueuedAgainAtOnceAndACancelledOneHoldsNothing) {
-  auto h = Historian::open(db_path());
+TEST_P(JobLeaseTest, AReleasedJobIsQueuedAgainAtOnceAndACancelledOneHoldsNothing) {
+  auto h = Historian::open(location());
   const auto a = enqueue(h, "a"), b = enqueue(h, "b");
   const auto ja = h.claim_job("stopping", {}, 60000ms);
   ASSERT_EQ(ja->job_id, a);
@@ -156,15 +157,15 @@ TEST(JobLeases, AReleasedJobIsQueuedAgainAtOnceAndACancelledOneHoldsNothing) {
 
 // A job left running by a program before schema v8 has no lease: its
 // worker is gone with that program, so it counts as expired.
-TEST(JobLeases, ARunningJobWithoutALeaseCountsAsExpired) {
-  const auto path = db_path();
+TEST_P(JobLeaseTest, ARunningJobWithoutALeaseCountsAsExpired) {
+  const auto path = location();
   std::int64_t id = 0;
   {
     auto h = Historian::open(path);
     id = enqueue(h, "old");
     ASSERT_TRUE(h.claim_job("old-server"));
   }
-  raw_exec(path, "UPDATE jobs SET lease_expires_at = NULL");
+  ASSERT_EQ(raw_error(path, "UPDATE jobs SET lease_expires_at = NULL"), "");
   auto h = Historian::open(path);
   EXPECT_FALSE(h.finish_job(id, 1, "{}"));
   EXPECT_EQ(h.requeue_expired_jobs().requeued, 1);

@@ -1,5 +1,6 @@
 // The historian: every run a pump streamed (or a recording imported), kept in
-// one SQLite file (docs/storage.md has the schema, pragmas and migrations).
+// one SQLite file or in a PostgreSQL database (docs/storage.md has the
+// schema, pragmas and migrations, and "PostgreSQL" what differs there).
 //
 // A run is its header (the recording's run.json, stored verbatim) plus sample
 // chunks: chunk `seq` (0, 1, 2, ...) holds `n_frames` frames starting at frame
@@ -9,15 +10,18 @@
 // whole samples.f32 (core/checksum.h), and the historian checks both against
 // what it holds: the run is then `complete`, or `incomplete` with a reason.
 //
-// Threads: a Historian is one SQLite connection; use it from one thread at a
-// time. One writer (Mode::write) per file; readers (Mode::read) open their own
-// connection each, in any thread or process. WAL lets readers run beside the
-// writer: a reader sees the last committed state and never blocks the writer.
+// Threads: a Historian is one database connection; use it from one thread at
+// a time. SQLite: one writer (Mode::write) per file; readers (Mode::read) open
+// their own connection each, in any thread or process. WAL lets readers run
+// beside the writer: a reader sees the last committed state and never blocks
+// the writer. PostgreSQL: any number of writers and readers, in any number
+// of processes; each write call takes the locks its checks need.
 //
 // Errors: bad input (unknown run, wrong chunk size, conflicting header or
-// chunk, a file that is not an ambdiag historian or is newer than this
-// program) throws ambdiag::InputError naming what is wrong; nothing of a
-// refused call is stored. Disk and SQLite failures throw StorageError.
+// chunk, a file or database that is not an ambdiag historian or is newer
+// than this program, a PostgreSQL server that cannot be reached or refuses
+// the login) throws ambdiag::InputError naming what is wrong; nothing of a
+// refused call is stored. Disk and database failures throw StorageError.
 #pragma once
 
 #include <chrono>
@@ -152,22 +156,34 @@ struct CheckpointOptions {
   bool sync_commits = false;
 };
 
+// True for a PostgreSQL location: a libpq connection URI, postgresql://...
+// or postgres://... (Historian::open); anything else is an SQLite file path.
+bool is_postgres_location(const std::string& location);
+// The location for messages and logs: a URI's password (user:PASSWORD@ or
+// password=PASSWORD) replaced by ***; a file path as it is.
+std::string display_location(const std::string& location);
+
 class Historian {
  public:
   enum class Mode {
-    write,  // creates the file if missing and migrates the schema
-    read    // the file must exist with the current schema; writes refused
+    write,  // creates the file (or the schema in the database) if missing and migrates it
+    read    // the file or schema must exist at the current version; writes refused
   };
-  // Throws InputError if the file is not an SQLite database, not an ambdiag
-  // historian, or has a newer schema than this program knows.
-  static Historian open(const std::string& path, Mode mode = Mode::write);
+  // `location`: an SQLite file path, or a PostgreSQL connection URI
+  // (is_postgres_location), whose tables go in the first schema of its
+  // search_path (public unless options=-csearch_path%3D... says otherwise).
+  // Throws InputError if the file is not an SQLite database, the server
+  // cannot be reached or refuses the login, or the file or database is not
+  // an ambdiag historian or has a newer schema than this program knows;
+  // messages name the location (display_location).
+  static Historian open(const std::string& location, Mode mode = Mode::write);
 
   Historian(Historian&&) noexcept;
   Historian& operator=(Historian&&) noexcept;
   ~Historian();
 
   static int schema_version();  // the version this program writes
-  const std::string& path() const;
+  const std::string& path() const;  // the location given to open()
 
   // --- writing (Mode::write) ---
   // Registers the pump if new and the run as `receiving`. Idempotent: the
@@ -223,7 +239,10 @@ class Historian {
   // connection of their own: commits no longer wait for them. Started after
   // every `trigger_pages` of log; if the thread falls behind, the writer
   // checkpoints itself at 16 x that, so the log stays bounded. Stops with
-  // the Historian. Call once, on a Mode::write historian.
+  // the Historian. Call once, on a Mode::write historian. PostgreSQL: the
+  // server checkpoints itself and a commit is durable when it returns
+  // (synchronous_commit on); this only starts the commit numbers below,
+  // each commit durable at once (the options are not used).
   void checkpoint_in_background(int trigger_pages = 1000);
   void checkpoint_in_background(const CheckpointOptions& opt);
   CheckpointStats checkpoint_stats() const;  // zeros when not started
