@@ -1,4 +1,4 @@
-// Several `ambdiag serve` processes on ONE SQLite file (issue 22,
+// Several `ambdiag serve` processes on ONE SQLite file or PostgreSQL database (issue 22,
 // docs/service.md "Several servers"): A runs ingest and REST, B and C run
 // the analysis and REST. Agents stream identification runs into A, whose
 // ingest queues each run's analysis in the commit that completes it; B and
@@ -23,6 +23,7 @@
 #include <set>
 
 #include "event_stream.h"
+#include "pg_cluster.h"
 #include "service_fixture.h"
 
 namespace ambdiag::testing {
@@ -96,8 +97,15 @@ class MultiServerTest : public ServiceTest {
     return std::nullopt;
   }
 
-  // Whether some connection holds SQLite's write lock on the file now.
+  // Whether some connection holds SQLite's write lock on the file now; on
+  // PostgreSQL, whether a transaction sits open without a statement (a
+  // paused process' one: it holds its row locks and maybe the events' lock).
   bool write_lock_held() const {
+    if (storage::is_postgres_location(db.string())) {
+      std::this_thread::sleep_for(60ms);  // longer than any live idle moment of a transaction
+      return pg_sql(db.string(), "SELECT count(*) FROM pg_stat_activity WHERE state LIKE 'idle in transaction%' "
+                                 "AND clock_timestamp() - state_change > interval '50 milliseconds'") != "0";
+    }
     sqlite3* h = nullptr;
     if (sqlite3_open_v2(db.string().c_str(), &h, SQLITE_OPEN_READWRITE, nullptr) != SQLITE_OK) {
       sqlite3_close(h);
