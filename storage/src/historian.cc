@@ -23,8 +23,9 @@
 
 namespace ambdiag::storage {
 
-std::string now_utc() {
-  const auto now = std::chrono::system_clock::now();
+std::string now_utc() { return utc_ms(std::chrono::system_clock::now()); }
+
+std::string utc_ms(std::chrono::system_clock::time_point now) {
   const std::time_t t = std::chrono::system_clock::to_time_t(now);
   const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
   std::tm tm{};

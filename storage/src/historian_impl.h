@@ -3,6 +3,7 @@
 #pragma once
 
 #include <bit>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -22,6 +23,8 @@ using detail::Stmt;
 using detail::Transaction;
 
 std::string now_utc();  // server clock, ISO 8601 UTC with milliseconds
+// The same format for another time (e.g. a lease's end): text order is time order.
+std::string utc_ms(std::chrono::system_clock::time_point t);
 std::string hex64(std::uint64_t v);
 RunStatus status_from_text(const std::string& s);
 inline std::string quoted(const std::string& id) { return "'" + id + "'"; }
@@ -51,7 +54,8 @@ struct Historian::Impl {
   }
 
   // What a write method serialises on beside the others of the same key.
-  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4 };
+  // (5 is the schema migration's, pg_schema.cc.)
+  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6 };
   // Inside a write transaction: waits until no other transaction holds the
   // key's lock, and holds it until this one ends. SQLite: nothing to do,
   // BEGIN IMMEDIATE already made this the only writer of the file.

@@ -357,6 +357,30 @@ CREATE TABLE ingest_leases (
   created_at    TEXT NOT NULL
 ) STRICT;
 )sql"},
+    // v8: several servers on one database (docs/service.md "Several
+    // servers"). A running job's lease: the server clock (ISO 8601 UTC with
+    // milliseconds, so text order is time order) until which its attempt
+    // holds it; renewed by the worker, and an expired one is queued again by
+    // any analysis process (the partial index finds them without a scan).
+    // The events table is what GET /api/v1/events streams on every server:
+    // written in the transaction of what it announces, tailed by each REST
+    // process by seq. The sequence starts at the migration's time in
+    // microseconds, so an event id of another (older) database is never
+    // mistaken for one of this database's.
+    {8, R"sql(
+ALTER TABLE jobs ADD COLUMN lease_expires_at TEXT;
+CREATE INDEX jobs_running_by_lease ON jobs(lease_expires_at) WHERE status = 'running';
+
+CREATE TABLE events (
+  seq      INTEGER PRIMARY KEY AUTOINCREMENT,
+  time     TEXT NOT NULL,
+  type     TEXT NOT NULL CHECK (type <> ''),
+  pump_id  TEXT NOT NULL DEFAULT '',
+  data     TEXT NOT NULL
+) STRICT;
+INSERT INTO sqlite_sequence (name, seq)
+VALUES ('events', CAST((julianday('now') - 2440587.5) * 86400000000.0 AS INTEGER));
+)sql"},
 };
 
 int pragma_int(Db& db, const char* sql) {

@@ -1,7 +1,7 @@
 // The historian's schema in PostgreSQL. SQLite's migrations (schema.cc)
 // are the history of files since version 1; a PostgreSQL database is
 // created directly at the version it starts at (6, then the later
-// migrations) and from then on
+// migrations, 7 and 8) and from then on
 // migrated like a file: a change to the schema is a new entry here AND in
 // schema.cc, with the same number (docs/storage.md, "Adding a migration").
 //
@@ -322,6 +322,26 @@ CREATE TABLE ingest_leases (
   expires_at    text COLLATE "C",
   created_at    text COLLATE "C" NOT NULL
 );
+)sql"},
+    // v8: job leases and the events table (SQLite's v8). lease_expires_at
+    // stays ISO 8601 text of the writing process' clock, as on SQLite
+    // (docs/storage.md "Schema v8"). The events' seq is an identity whose
+    // sequence starts at the migration's time in microseconds (setval: the
+    // next is one more, as after SQLite's sqlite_sequence row); its name is
+    // fixed because last_event_seq reads it. That seqs also commit in
+    // order is append_event's advisory lock.
+    {8, R"sql(
+ALTER TABLE jobs ADD COLUMN lease_expires_at text COLLATE "C";
+CREATE INDEX jobs_running_by_lease ON jobs(lease_expires_at) WHERE status = 'running';
+
+CREATE TABLE events (
+  seq      bigint GENERATED ALWAYS AS IDENTITY (SEQUENCE NAME events_seq_seq) PRIMARY KEY,
+  time     text COLLATE "C" NOT NULL,
+  type     text COLLATE "C" NOT NULL CHECK (type <> ''),
+  pump_id  text COLLATE "C" NOT NULL DEFAULT '',
+  data     text COLLATE "C" NOT NULL
+);
+SELECT setval('events_seq_seq', CAST(extract(epoch FROM clock_timestamp()) * 1000000 AS bigint));
 )sql"},
 };
 
