@@ -42,6 +42,11 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Undoes migration 8 (job leases, the events table).
+inline constexpr const char* kUndoLeasesEventsV8Sql =
+    "DROP TABLE events; DELETE FROM sqlite_sequence WHERE name = 'events'; DROP INDEX jobs_running_by_lease; "
+    "ALTER TABLE jobs DROP COLUMN lease_expires_at;";
+
 // Undoes migration 7 (ingest groups' leases).
 inline constexpr const char* kUndoIngestLeasesV7Sql = "DROP TABLE ingest_leases;";
 
@@ -67,6 +72,7 @@ inline constexpr const char* kUndoServiceV4Sql =
 // A file of the current schema taken back to what migration `version`
 // (3, 4 or 6) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
+  raw_exec(path, kUndoLeasesEventsV8Sql);
   raw_exec(path, kUndoIngestLeasesV7Sql);
   if (version < 6) raw_exec(path, kUndoAlarmsV6Sql);
   raw_exec(path, kUndoTrendsV5Sql);

@@ -98,14 +98,15 @@ function bandPlugin(band, limits) {
 
 // The lines of a series' `limits` (docs/service.md "Trends": {"rule",
 // "lines": [{"kind": "raise"|"clear", "severity"?, "value"}]}), labelled
-// as the alarm list words them: "HIGH alarm", "clear".
+// "alarm (high)" (the severity in brackets: an upper limit of a low
+// severity alarm must not read as a "LOW" limit), "clear".
 export function limitLines(limits) {
   return (limits?.lines || [])
     .filter((l) => Number.isFinite(l.value))
     .map((l) => ({
       value: l.value,
       rule: limits.rule || '',
-      label: l.kind === 'raise' ? `${l.severity ? l.severity.toUpperCase() + ' ' : ''}alarm` : l.kind,
+      label: l.kind === 'raise' ? `alarm${l.severity ? ` (${l.severity})` : ''}` : l.kind,
     }));
 }
 
