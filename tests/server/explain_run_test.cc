@@ -17,7 +17,6 @@
 
 #include <cmath>
 #include <complex>
-#include <cstdio>
 #include <string>
 
 #include "ambdiag/algorithms/explain/missing_physics.h"
@@ -89,7 +88,6 @@ TEST_F(ExplainRun, TheWornPistonsClearanceIsFoundAndTheFitComesToTheNoise) {
   ASSERT_FALSE(frf.entries.empty());
   ASSERT_TRUE(frf.speed_rpm.has_value());
   const json r = explain_run(nominal, frf, nullptr).result;
-  std::printf("%s\n", r["story"].dump(1).c_str());
   expect_guarantee(nominal, r);
   // The truth: every coefficient of the piston x 1 / (1.5 x the seal drift).
   const size_t piston = link_named(nominal, "balance_piston");
@@ -119,7 +117,6 @@ TEST_F(ExplainRun, WhatTheCatalogueCannotExpressNeverRaisesTheReportedNrmse) {
   PlantModel unmarked = nominal;
   unmarked.links[link_named(unmarked, "balance_piston")].kind = "annular";
   const json r = explain_run(unmarked, frf, nullptr).result;
-  std::printf("%s\n", r["story"].dump(1).c_str());
   expect_guarantee(unmarked, r);
   EXPECT_LT(r["chi2_per_line_after"].get<double>(), r["chi2_per_line_before"].get<double>());
 }

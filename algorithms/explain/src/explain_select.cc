@@ -171,7 +171,6 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
       s.report.chi2_drop_fit = t->gain_fit;
       s.report.chi2_drop_validation = t->gain_val;
       s.report.penalty = t->threshold_val;
-      s.report.nrmse_before = nrmse_before;
       sel.push_back(std::move(s));
     }
     // The earlier selections were fitted without this one: let them settle
@@ -192,8 +191,6 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
       continue;
     }
     refusals = 0;
-    sel.back().report.nrmse_after = nrmse_after;
-    if (t->c2) sel[sel.size() - 2].report.nrmse_after = nrmse_after;
     progress("accepted " + t->c->id + (t->c2 ? " + " + t->c2->id : std::string()) +
              fmt(": chi2 on held-out lines -%.4g (penalty %.4g), nrmse %.4f", t->gain_val, t->threshold_val, nrmse_after));
   }
@@ -212,13 +209,12 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   if (!sel.empty()) {
     // Parsimony: one physics on the nominal model against the whole
     // selection. It is one step from the nominal: it must lower the NRMSE
-    // from there, else the selection stays.
+    // from there, else the selection stays. (Each piece's reported NRMSE
+    // before and after is set by the chain of the report below.)
     const PlantVariant nominal_variant = sel_engine.build({});
     const std::vector<Selected> selected = sel;
     if (const auto id = sel_engine.replace_by_single(sel, physics_candidates(nominal, view_of(nominal_variant)))) {
       const double before = nrmse_of(res.model_before, measured), after = nrmse_of(eval.model_frf(sel_engine.build(sel)), measured);
-      for (auto& s : sel)
-        if (s.c.id == *id) s.report.nrmse_before = before, s.report.nrmse_after = after;
       if (!(after < before)) {
         progress("parsimony's " + *id + fmt(" would take the NRMSE from %.4f to %.4f: the selection stays", before, after));
         sel = selected;
@@ -227,7 +223,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   }
   std::vector<Selector::Alternative> alternatives;
   if (!sel.empty()) alternatives = sel_engine.alternatives(sel, physics_candidates(nominal, view_of(sel_engine.build(sel))));
-  detail::SpeedJudgement judged = detail::judge_at_other_speeds(sel_engine, others, sel, alternatives, progress);
+  const detail::SpeedJudgement judged = detail::judge_at_other_speeds(sel_engine, others, sel, alternatives, progress);
 
   // 3. Report.
   auto improved_of = [&](const std::vector<Selected>& pieces) {
@@ -266,7 +262,7 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
         chain.back().report.nrmse_after = now = after;
       } else {
         progress("not handed out: " + s.c.id + fmt(" would take the NRMSE from %.4f to %.4f", now, after));
-        dropped_story.push_back("Not handed out: " + s.c.physics + " at " + s.c.location.dump() +
+        dropped_story.push_back("Not handed out: " + (s.c.is_update ? "the update " + s.c.id : s.c.physics + " at " + s.c.location.dump()) +
                                 fmt(" lowers chi2 but with the final values would take the NRMSE from %.4f to %.4f.", now, after));
       }
     }
@@ -278,7 +274,6 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
       for (const auto& c : chain) kept.insert(c.c.id);
       alternatives.erase(std::remove_if(alternatives.begin(), alternatives.end(), [&](const auto& a) { return !kept.count(a.claim_id); }),
                          alternatives.end());
-      if (chain.empty()) judged = {};
       sel = std::move(chain);
     }
   }
@@ -309,7 +304,17 @@ ExplainResult explain(const PlantModel& nominal, const FrfData& measured, const 
   std::vector<std::string> alt_story;
   for (const auto& s : sel) {
     if (s.c.is_update) {
-      for (const auto& ch : s.c.changes(s.x)) res.updated_parameters.push_back(ch);
+      // Two factors on one coefficient (a seal's clearance and its direct
+      // stiffness, say: both scale it, build() applies both) are one change
+      // of it, from the model's value to the improved model's.
+      for (const auto& ch : s.c.changes(s.x)) {
+        const auto same = std::find_if(res.updated_parameters.begin(), res.updated_parameters.end(),
+                                       [&](const ParameterChange& p) { return p.path == ch.path; });
+        if (same == res.updated_parameters.end())
+          res.updated_parameters.push_back(ch);
+        else if (ch.from != 0.0)
+          same->to *= ch.to / ch.from;
+      }
       continue;
     }
     Explanation e = s.report;
