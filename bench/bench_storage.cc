@@ -13,7 +13,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -24,6 +23,7 @@
 #include "ambdiag/core/process_memory.h"
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
+#include "bench_chunks.h"
 #include "bench_util.h"
 
 namespace {
@@ -32,9 +32,10 @@ namespace fs = std::filesystem;
 using ambdiag::storage::Chunk;
 using ambdiag::storage::Historian;
 
-constexpr int kChannels = 16;
-constexpr std::int64_t kFramesPerChunk = 512;  // 16 x 4 x 512 = 32 KiB
-constexpr std::size_t kChunkBytes = kChannels * 4 * kFramesPerChunk;
+using ambdiag::bench::kChannels;
+using ambdiag::bench::kChunkBytes;
+using ambdiag::bench::kFramesPerChunk;
+using ambdiag::bench::run_json;
 
 struct Timer {
   std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
@@ -88,15 +89,6 @@ void bare_sqlite(const fs::path& path, const std::vector<std::uint8_t>& data, st
   sqlite3_close(db);
 }
 
-std::string run_json(const std::string& run_id) {
-  std::string j = R"({"format": "ambdiag.run/1", "pump_id": "P-1", "run_id": ")" + run_id +
-                  R"(", "kind": "monitoring", "started_at": "2026-11-22T00:00:00Z", "speed_rpm": 3000,)"
-                  R"( "sample_rate_hz": 8000, "channels": [)";
-  for (int c = 0; c < kChannels; ++c)
-    j += std::string(c ? ", " : "") + R"({"name": "x)" + std::to_string(c) + R"(", "role": "displacement", "unit": "m"})";
-  return j + "]}";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -110,24 +102,13 @@ int main(int argc, char** argv) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::size_t n_chunks = static_cast<std::size_t>(mb * 1e6 / kChunkBytes);
-  std::vector<std::uint8_t> data(n_chunks * kChunkBytes);
-  {
-    std::mt19937 rng(1);
-    std::normal_distribution<float> d;
-    for (std::size_t i = 0; i < data.size(); i += 4) {
-      const float x = d(rng);
-      std::memcpy(&data[i], &x, 4);
-    }
-  }
+  const std::vector<std::uint8_t> data = ambdiag::bench::seeded_samples(n_chunks);
   std::printf("%zu chunks of %zu bytes (%.0f MB), %d channels; files in %s; SQLite %s\n", n_chunks, kChunkBytes,
               static_cast<double>(data.size()) / 1e6, kChannels, dir.c_str(), sqlite3_libversion());
 
   for (int batch : {100, 1000}) bare_sqlite(dir / "bare.db", data, n_chunks, batch);
 
-  std::vector<Chunk> chunks;
-  for (std::size_t i = 0; i < n_chunks; ++i)
-    chunks.push_back({static_cast<std::int64_t>(i), static_cast<std::int64_t>(i) * kFramesPerChunk, kFramesPerChunk,
-                      std::span(data).subspan(i * kChunkBytes, kChunkBytes)});
+  const std::vector<Chunk> chunks = ambdiag::bench::chunks_of(data);
   const std::string db_path = (dir / "historian.db").string();
   std::string last_run;
   for (std::size_t batch : {100u, 1000u}) {

@@ -17,6 +17,8 @@ if(NOT AMBDIAG_FUZZ_ONLY)
 
   # Historian and REST (issue 5).
   find_package(SQLite3 REQUIRED)
+  # The historian's second backend (issue 22): plain libpq (libpq-dev).
+  find_package(PostgreSQL REQUIRED)
   find_package(PkgConfig REQUIRED)
   pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
   # HTTPS for the REST service (issue 21): Debian's cpp-httplib is built

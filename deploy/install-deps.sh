@@ -8,6 +8,9 @@ packages=(
   libeigen3-dev libsuitesparse-dev
   cyclonedds-dev cyclonedds-tools
   libsqlite3-dev sqlite3
+  # The historian on PostgreSQL (issue 22): libpq to build; the server to
+  # run the tests (they start a throwaway cluster of their own).
+  libpq-dev postgresql
   nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcpp-httplib-dev zlib1g-dev

@@ -109,12 +109,12 @@ int run_db_retention(const std::vector<std::string>& argv) {
     for (const auto& run : r.runs)
       std::printf("%-8s %-40s %10.3f MB  %s\n", run.what.c_str(), run.run_id.c_str(), static_cast<double>(run.bytes) / 1e6,
                   run.reason.c_str());
-    std::printf("%s the samples of %lld runs (%.1f MB), the FRFs of %lld runs (%.1f MB), %lld monitoring snapshots; "
-                "%.2f s, longest transaction %.3f s\n",
+    std::printf("%s the samples of %lld runs (%.1f MB), %lld day partitions whole, the FRFs of %lld runs (%.1f MB), "
+                "%lld monitoring snapshots; %.2f s, longest transaction %.3f s\n",
                 opt.dry_run ? "would drop" : "dropped", static_cast<long long>(r.samples_runs),
-                static_cast<double>(r.samples_bytes) / 1e6, static_cast<long long>(r.frf_runs),
-                static_cast<double>(r.frf_bytes) / 1e6, static_cast<long long>(r.monitoring_rows), r.seconds,
-                r.longest_transaction_s);
+                static_cast<double>(r.samples_bytes) / 1e6, static_cast<long long>(r.partitions),
+                static_cast<long long>(r.frf_runs), static_cast<double>(r.frf_bytes) / 1e6,
+                static_cast<long long>(r.monitoring_rows), r.seconds, r.longest_transaction_s);
   }
   for (const auto& e : r.errors) std::fprintf(stderr, "ambdiag db retention: %s\n", e.c_str());
   if (!r.skipped.empty()) {
@@ -149,12 +149,14 @@ std::vector<Command> db_commands() {
        run_db_list},
       {{"db", "retention"},
        "one retention sweep: drop what the pumps' retention policies no longer keep",
-       "usage: ambdiag db retention --db FILE [--retention FILE] [--dry-run] [--json]\n\n"
+       "usage: ambdiag db retention --db FILE|postgresql://... [--retention FILE] [--dry-run] [--json]\n\n"
        "Drops the raw samples, the analyses' files (frf.csv, figures) and the monitoring snapshots that\n"
        "each pump's policy (PUT /api/v1/pumps/{id}/retention) over the defaults no longer keeps, and prints\n"
        "what it dropped, run by run. The defaults: --retention FILE (as `ambdiag serve --retention`), else\n"
        "the built-in ones (samples 90 days, FRFs 730 days, monitoring kept). Reference runs and runs an\n"
-       "open alarm or a queued or running job names are never dropped. Works beside a running server.\n"
+       "open alarm or a queued or running job names are never dropped. Works beside running servers (one\n"
+       "sweep at a time on a database). On PostgreSQL a past day's partition of samples none of whose runs\n"
+       "is kept is dropped whole (docs/storage.md \"Retention\").\n"
        "  --dry-run  print what would be dropped, change nothing\n"
        "  --json     {\"samples\": {\"runs\", \"bytes\"}, \"frf\": {...}, \"monitoring_rows\", \"runs\": [...], ...}\n"
        "Exit 3 when another sweep holds the retention lease (nothing dropped).\n",

@@ -15,10 +15,8 @@
 #include <thread>
 
 #include "ambdiag/core/error.h"
-#include "ambdiag/core/process_lock.h"
 #include "ambdiag/proto/stream.h"
 #include "ambdiag/server/analysis_service.h"
-#include "ambdiag/server/events.h"
 #include "ambdiag/server/ingest.h"
 #include "ambdiag/server/ingest_group.h"
 #include "ambdiag/server/metrics.h"
@@ -27,6 +25,7 @@
 #include "ambdiag/storage/historian.h"
 #include "args.h"
 #include "command.h"
+#include "serve_parts.h"
 #include "serve_ingest_group.h"
 
 namespace ambdiag::cli {
@@ -65,13 +64,25 @@ int run_serve(const std::vector<std::string>& argv) {
   std::set<std::string> options = {"--db", "--http-port", "--domain", "--agent-timeout", "--bench-commit-delay-ms",
                                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
                                    "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within",
-                                   "--speak-protocol", "--web-dir", "--retention", "--retention-interval"};
+                                   "--speak-protocol", "--web-dir", "--retention", "--retention-interval", "--parts",
+                                   "--instance", "--job-lease"};
   options.insert(std::begin(kIngestGroupOptionNames), std::end(kIngestGroupOptionNames));
   const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
-  if (!args.option("--http-port")) throw UsageError("missing --http-port N");
+  // The parts this process runs (docs/service.md "Several servers"): an
+  // option of a part it does not run is a mistake, not something to ignore.
+  const ServeParts parts = parse_serve_parts(args.option("--parts").value_or("ingest,analysis,rest"));
+  const std::string instance = serve_instance_name(args.option("--instance").value_or(""));
+  const auto not_run = [&](const char* option, const char* part) {
+    if (args.option(option))
+      throw UsageError(std::string(option) + ": this process runs no " + part + " (--parts " + parts.text() + ")");
+  };
+  if (!parts.rest) not_run("--http-port", "rest");
+  if (!parts.analysis) not_run("--workers", "analysis");
+  if (!parts.analysis) not_run("--retention-interval", "analysis");
+  if (parts.rest && !args.option("--http-port")) throw UsageError("missing --http-port N");
   const int http_port = integer_in(args, "--http-port", 0, 65535, 0);
   server::IngestOptions opt;
   opt.domain = integer_in(args, "--domain", 0, 232, 0);
@@ -80,7 +91,8 @@ int run_serve(const std::vector<std::string>& argv) {
       static_cast<long>(1000.0 * args.number("--agent-timeout").value_or(10.0)));
   if (opt.agent_timeout.count() <= 0) throw UsageError("--agent-timeout: must be > 0 seconds");
   opt.verbose = !args.flag("--quiet");
-  const server::IngestGroupOptions group_opt = ingest_group_options(args, opt.verbose);
+  server::IngestGroupOptions group_opt = ingest_group_options(args, opt.verbose);
+  group_opt.instance = instance;  // one name for the process: its lease, health, metrics, workers
   opt.commit_delay = std::chrono::milliseconds(integer_in(args, "--bench-commit-delay-ms", 0, 10000, 0));
 
   storage::CheckpointOptions ckpt;
@@ -102,7 +114,11 @@ int run_serve(const std::vector<std::string>& argv) {
 
   server::AnalysisOptions aopt;
   aopt.db_path = *db;
-  aopt.workers = integer_in(args, "--workers", 0, 64, 2);
+  aopt.workers = parts.analysis ? integer_in(args, "--workers", 0, 64, 2) : 0;
+  aopt.instance = instance;
+  const double lease_s = args.number("--job-lease").value_or(10.0);
+  if (!(lease_s >= 0.5 && lease_s <= 3600)) throw UsageError("--job-lease: must be seconds in 0.5..3600");
+  aopt.job_lease = std::chrono::milliseconds(static_cast<long>(1000 * lease_s));
   aopt.proposed_reference_runs = integer_in(args, "--reference-runs", 1, 100, 3);
   aopt.alpha = args.number("--alpha").value_or(aopt.alpha);
   if (!(aopt.alpha > 0 && aopt.alpha < 0.5)) throw UsageError("--alpha: must be in (0, 0.5)");
@@ -125,35 +141,41 @@ int run_serve(const std::vector<std::string>& argv) {
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
 
-  // One analysing server per historian file: two would requeue each other's
-  // running jobs at start. Ingest is shared by ingest groups (docs/streaming.md).
-  std::optional<ProcessLock> lock;
-  if (aopt.workers > 0)
-    lock.emplace(*db + ".lock", "historian " + *db, "ambdiag serve",
-                 "; one analysing server per historian file (more servers: --workers 0, ingest groups)");
+  // No lock on the file: several servers share it, ingest groups decide
+  // which one ingests (docs/streaming.md) and job leases which one runs a
+  // job (docs/service.md "Several servers"); a PostgreSQL database the same.
   storage::Historian historian = storage::Historian::open(*db, storage::Historian::Mode::write);
   // Commits (and so acks) never wait for a checkpoint's fsyncs; the
   // checkpoints also say which commits are durable (docs/storage.md).
-  historian.checkpoint_in_background(ckpt);
-  // What ingest, the analysis and REST publish into (GET /metrics, GET
-  // /api/v1/events); declared first, so they outlive all three.
+  if (parts.ingest) historian.checkpoint_in_background(ckpt);
+  // What ingest, the analysis and REST count into (GET /metrics); declared
+  // first, so it outlives all three.
   server::MetricsRegistry metrics;
-  server::EventBus events;
-  opt.events = &events;
-  aopt.events = &events;
+  metrics.gauge("ambdiag_instance_info", "This process' instance name and the parts it runs (value 1).",
+                {"instance", "parts"})
+      .with({instance, parts.text()})
+      .set(1);
   aopt.metrics = &metrics;
   ropt.metrics = &metrics;
+  // Every process shows and versions policies (REST); only an analysis
+  // part sweeps (start() below), the lease keeping it to one at a time.
   server::RetentionService retention(ropt);
+  // REST writes and queueing need the service; its workers only run with the analysis part.
   std::optional<server::AnalysisService> analysis;
-  if (aopt.workers > 0) {
-    analysis.emplace(aopt);
+  if (parts.analysis || parts.rest) analysis.emplace(aopt);
+  // A run's analysis job is queued in the commit that makes it complete,
+  // wherever the analysis runs; a worker of this process is woken after it.
+  opt.in_commit_run_complete = [](storage::Historian& h, const std::string& run_id) { server::queue_run_analysis(h, run_id); };
+  if (analysis && aopt.workers > 0)
     opt.on_run_complete = [&analysis](const std::string& run_id) { analysis->notify_run_complete(run_id); };
-  }
   // Several servers may name one ingest group: one ingests, the others stand by.
-  server::IngestGroup ingest_group(historian, opt, group_opt);
-  const server::Ingest& ingest = ingest_group.ingest();
-  server::register_ingest_metrics(metrics, ingest);
-  server::register_ingest_group_metrics(metrics, ingest_group);
+  std::optional<server::IngestGroup> ingest_group;
+  if (parts.ingest) {
+    ingest_group.emplace(historian, opt, group_opt);
+    server::register_ingest_metrics(metrics, ingest_group->ingest());
+    server::register_ingest_group_metrics(metrics, *ingest_group);
+  }
+  const server::Ingest* ingest = ingest_group ? &ingest_group->ingest() : nullptr;
   server::RestOptions rest_opt;
   rest_opt.db_path = *db;
   rest_opt.port = http_port;
@@ -166,18 +188,19 @@ int run_serve(const std::vector<std::string>& argv) {
     throw UsageError("--tls-cert and --tls-key go together (HTTPS needs both)");
   rest_opt.proposed_reference_runs = aopt.proposed_reference_runs;
   rest_opt.metrics = &metrics;
-  rest_opt.events = &events;
   rest_opt.rate_limit_per_s = rate;
   rest_opt.rate_limit_burst = burst;
   // The UI's files: --web-dir, else next to the binary (build tree or install).
   rest_opt.web_dir = args.option("--web-dir").value_or(server::find_web_dir("/proc/self/exe"));
   if (args.option("--web-dir") && !std::filesystem::is_regular_file(rest_opt.web_dir + "/index.html"))
     throw UsageError("--web-dir " + rest_opt.web_dir + ": holds no index.html (build the UI: web/README.md)");
-  rest_opt.health_extra = [&ingest, &ingest_group, &historian, &analysis, &retention] {
+  rest_opt.health_extra = [&ingest_group, &historian, &analysis, &parts, &instance, &retention] {
     const auto ck = historian.checkpoint_stats();
-    return nlohmann::json{{"ingest", ingest.health()},
-                          {"ingest_groups", nlohmann::json::array({ingest_group.health()})},
-                          {"jobs", analysis ? analysis->counters() : nlohmann::json(nullptr)},
+    return nlohmann::json{{"instance", instance},
+                          {"parts", parts.names()},
+                          {"ingest", ingest_group ? ingest_group->ingest().health() : nlohmann::json(nullptr)},
+                          {"ingest_groups", ingest_group ? nlohmann::json::array({ingest_group->health()}) : nlohmann::json::array()},
+                          {"jobs", analysis && parts.analysis ? analysis->counters() : nlohmann::json(nullptr)},
                           {"retention", retention.last_sweep()},
                           {"checkpoints", {{"background", ck.background},
                                            {"by_writer", ck.inline_by_writer},
@@ -188,17 +211,27 @@ int run_serve(const std::vector<std::string>& argv) {
                                            {"errors", ck.errors},
                                            {"last_error", ck.last_error}}}};
   };
-  server::RestServer rest(rest_opt);
-  const int bound_port = rest.start();
-  std::fprintf(stderr, "ambdiag serve: historian %s, DDS domain %d, ingest group %s (partitions %s), REST on port %d%s\n",
-               db->c_str(), opt.domain, group_opt.group.c_str(), ingest_group.status().partitions.c_str(), bound_port,
-               rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
-  if (!rest_opt.web_dir.empty())
+  std::optional<server::RestServer> rest;
+  int bound_port = 0;
+  if (parts.rest) {
+    rest.emplace(rest_opt);
+    bound_port = rest->start();
+  }
+  std::fprintf(stderr, "ambdiag serve: instance %s, parts %s, historian %s", instance.c_str(), parts.text().c_str(),
+               storage::display_location(*db).c_str());
+  if (ingest_group)
+    std::fprintf(stderr, ", DDS domain %d, ingest group %s (partitions %s)", opt.domain, group_opt.group.c_str(),
+                 ingest_group->status().partitions.c_str());
+  if (parts.rest) std::fprintf(stderr, ", REST on port %d%s", bound_port, rest_opt.tls_cert_path.empty() ? "" : " (HTTPS)");
+  std::fprintf(stderr, "\n");
+  if (parts.rest && !rest_opt.web_dir.empty())
     std::fprintf(stderr, "ambdiag serve: web UI at %s://HOST:%d/ (files in %s)\n", rest_opt.tls_cert_path.empty() ? "http" : "https",
                  bound_port, rest_opt.web_dir.c_str());
   if (analysis) analysis->start();
-  retention.start();
-  std::thread ingest_thread([&] { ingest_group.run(g_stop); });
+  if (parts.analysis) retention.start();
+  std::thread ingest_thread([&] {
+    if (ingest_group) ingest_group->run(g_stop);
+  });
 
   // Progress on stderr every 5 s while something changes.
   int64_t last_blocks = 0, last_rejected = 0;
@@ -208,7 +241,8 @@ int run_serve(const std::vector<std::string>& argv) {
     const auto now = std::chrono::steady_clock::now();
     if (now < next_report) continue;
     next_report = now + std::chrono::seconds(5);
-    const auto& c = ingest.counters();
+    if (!ingest) continue;
+    const auto& c = ingest->counters();
     if (c.blocks_stored == last_blocks && c.rejected_total() == last_rejected) continue;
     last_blocks = c.blocks_stored;
     last_rejected = c.rejected_total();
@@ -219,11 +253,15 @@ int run_serve(const std::vector<std::string>& argv) {
   }
   std::fprintf(stderr, "ambdiag serve: stopping\n");
   ingest_thread.join();
-  rest.stop();
+  if (rest) rest->stop();
   retention.stop();
   if (analysis) analysis->stop();
-  const auto& c = ingest.counters();
-  const auto h = ingest.health();
+  if (!ingest) {
+    std::fprintf(stderr, "ambdiag serve: stopped\n");
+    return kExitOk;
+  }
+  const auto& c = ingest->counters();
+  const auto h = ingest->health();
   std::fprintf(stderr,
                "ambdiag serve: stopped (%lld blocks, %lld bytes committed; %.3f s from the first block received to "
                "the last commit; queue peak %lld bytes; %lld blocks received, %lld duplicates, %lld before their "
@@ -244,11 +282,12 @@ std::vector<Command> serve_commands() {
   return {{{"serve"},
            "the server: DDS ingest into the historian, REST read side",
            "usage: ambdiag serve --db FILE --http-port N [--domain D] [--partition NAME] [--agent-timeout S] [--tls-cert F --tls-key F] [--quiet]\n"
-           "                     [--ingest-group NAME] [--ingest-partitions P,...] [--ingest-lease S] [--instance NAME]\n"
+           "                     [--ingest-group NAME] [--ingest-partitions P,...] [--ingest-lease S]\n"
            "                     [--durability checkpoint|full] [--durable-within S]\n"
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
            "                     [--retention FILE] [--retention-interval S]\n"
+           "                     [--parts ingest,analysis,rest] [--instance NAME] [--job-lease S]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -259,11 +298,13 @@ std::vector<Command> serve_commands() {
            "against the pump's reference at false-alarm rate P per run (--alpha, default 1e-5), diagnosis.\n"
            "Without a reference the first N complete identification runs are proposed (--reference-runs,\n"
            "default 3). Every request but health needs a token (ambdiag token add); --anonymous-read lets\n"
-           "requests without one read as viewer. One analysing server (--workers > 0) per historian file (FILE.lock).\n"
+           "requests without one read as viewer.\n"
+           "FILE may be a PostgreSQL database instead: --db postgresql://USER@HOST/DB (a libpq URI;\n"
+           "  docs/storage.md \"PostgreSQL\"), created there at the first start.\n"
            "--ingest-group NAME (default: default): servers naming one group on one database ingest its partitions\n"
            "  (--partition SITE: SITE,SITE/*; or --ingest-partitions P1,P2 of DDS partition names or patterns; default *)\n"
            "  one at a time: the holder renews a lease of S seconds (--ingest-lease, default 3), a standby takes over\n"
-           "  when it lapses; --instance NAME names this server in the lease (default HOST:PID; docs/streaming.md).\n"
+           "  when it lapses (docs/streaming.md).\n"
            "--rate-limit N: requests per second per token (per client address without one), in bursts of\n"
            "  B (--rate-limit-burst, default 2N); beyond: 429 with Retry-After. Default 50; 0: no limit.\n"
            "  Health and /metrics are not limited. GET /metrics: Prometheus metrics; GET /api/v1/events:\n"
@@ -274,10 +315,19 @@ std::vector<Command> serve_commands() {
            "--retention FILE: the server's default retention policy (JSON {\"samples_days\"?, \"samples_bytes\"?,\n"
            "  \"frf_days\"?, \"monitoring_days\"?}, each over the built-in one: samples 90 days, FRFs 730 days,\n"
            "  monitoring kept; null: kept for ever), checked at the start; each pump's own policy over it:\n"
-           "  PUT /api/v1/pumps/{id}/retention. The sweep runs 2 s after the start and every S seconds\n"
-           "  (--retention-interval, default 600; 0: never, `ambdiag db retention` sweeps). docs/storage.md.\n"
+           "  PUT /api/v1/pumps/{id}/retention. An analysis part sweeps 2 s after the start and every S seconds\n"
+           "  (--retention-interval, default 600; 0: never, `ambdiag db retention` sweeps), one process at a time\n"
+           "  on a database. docs/storage.md.\n"
            "--web-dir DIR: the web UI's built files, served at / without a token (default: ../web or\n"
            "  ../share/ambdiag/web next to this binary; web/README.md).\n"
+           "--parts LIST: what this process runs, any of ingest, analysis, rest (default all three); any number\n"
+           "  of processes may share FILE (docs/service.md \"Several servers\"). Without\n"
+           "  rest no port is opened (--http-port refused); without analysis no job runs here and no\n"
+           "  retention sweep (--workers, --retention-interval refused).\n"
+           "--instance NAME: this process' name in health, metrics, its jobs' `worker` and its ingest group's lease\n"
+           "  (default HOST:PID).\n"
+           "--job-lease S: a claimed job is held S seconds (default 10) and renewed every S/3; a job whose\n"
+           "  worker died or stalled is queued again by any analysis process once its lease expired.\n"
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"

@@ -25,9 +25,6 @@ server::IngestGroupOptions ingest_group_options(const Args& args, bool verbose) 
   server::IngestGroupOptions g;
   g.group = args.option("--ingest-group").value_or("default");
   if (g.group.empty() || g.group.size() > 128) throw UsageError("--ingest-group: a name of 1 to 128 characters");
-  g.instance = args.option("--instance").value_or("");
-  if (args.option("--instance") && (g.instance.empty() || g.instance.size() > 128))
-    throw UsageError("--instance: a name of 1 to 128 characters");
   const double lease_s = args.number("--ingest-lease").value_or(3.0);
   if (!(lease_s >= 0.3 && lease_s <= 600)) throw UsageError("--ingest-lease: must be seconds in 0.3..600");
   g.lease = std::chrono::milliseconds(static_cast<long>(1000 * lease_s));

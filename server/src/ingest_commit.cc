@@ -84,14 +84,15 @@ Committer::Chain& Committer::chain(Staged& st, const std::string& run_id) {
 
 void Committer::apply(BeginRun& w, Staged& st) {
   try {
-    // A header is re-sent after an agent's restart: only the first is news.
-    const bool fresh = opt_.events && !h_.find_run(w.header.run_id);
+    // A header is re-sent after an agent's restart: only the first is news,
+    // announced in the same transaction (GET /api/v1/events).
+    const bool fresh = !h_.find_run(w.header.run_id);
     h_.begin_run(w.header);
     ++st.headers;
     if (fresh)
-      st.events.push_back({"run.new",
-                           {{"run_id", w.header.run_id}, {"pump_id", w.header.pump_id}, {"kind", w.header.kind},
-                            {"started_at", w.header.started_at}, {"status", "receiving"}}});
+      h_.append_event("run.new", w.header.pump_id,
+                      event_data({{"run_id", w.header.run_id}, {"pump_id", w.header.pump_id}, {"kind", w.header.kind},
+                                  {"started_at", w.header.started_at}, {"status", "receiving"}}));
   } catch (const InputError& e) {
     reject("header", w.header.run_id, e.what());
   }
@@ -148,7 +149,7 @@ void Committer::verdict(Staged& st, const std::string& run_id, const std::string
   const auto changed = [&](const char* status, const std::string& why) {
     nlohmann::json d = {{"run_id", run_id}, {"pump_id", pump_id}, {"status", status}};
     if (!why.empty()) d["reason"] = why;
-    st.events.push_back({"run.status", std::move(d)});
+    h_.append_event("run.status", pump_id, event_data(d));
   };
   if (after == RunStatus::complete) {
     if (before != RunStatus::complete) {
@@ -156,6 +157,13 @@ void Committer::verdict(Staged& st, const std::string& run_id, const std::string
       st.log.push_back("run " + run_id + ": complete");
       st.completed.push_back(run_id);
       changed("complete", "");
+      if (opt_.in_commit_run_complete) {
+        try {
+          opt_.in_commit_run_complete(h_, run_id);
+        } catch (const InputError& e) {
+          st.log.push_back("run " + run_id + ": not queued for analysis: " + e.what());
+        }
+      }
     }
     st.verdicts.push_back({run_id, -1, -1, ambdiag_stream_ACK_COMPLETE, "complete: count and checksum verified"});
   } else {
@@ -286,8 +294,6 @@ void Committer::commit(std::vector<Work>& batch) {
   // After the commit: whoever analyses the run reads it complete.
   if (opt_.on_run_complete)
     for (const auto& id : st.completed) opt_.on_run_complete(id);
-  if (opt_.events)
-    for (const auto& [type, data] : st.events) opt_.events->publish(type, data);
 }
 
 }  // namespace ambdiag::server::detail

@@ -63,7 +63,6 @@ class Committer {
     std::vector<Ack> verdicts;
     std::vector<std::string> log;
     std::vector<std::string> completed;  // runs that became complete in this batch
-    std::vector<std::pair<std::string, nlohmann::json>> events;  // published after the commit
     int64_t blocks_stored = 0, blocks_duplicate = 0, bytes_stored = 0, headers = 0, complete = 0, incomplete = 0,
             monitoring_stored = 0, monitoring_duplicate = 0, from_digest = 0;
     bool stream_progress = false;  // blocks stored or a run ended

@@ -8,6 +8,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/rest_server.h"
+#include "ambdiag/storage/historian.h"
 
 int main(int argc, char** argv) {
   ambdiag::server::RestOptions opt;
@@ -42,7 +43,8 @@ int main(int argc, char** argv) {
   try {
     ambdiag::server::RestServer server(opt);
     const int port = server.start();
-    std::fprintf(stderr, "ambdiag-rest: serving %s on %s://%s:%d/api/v1/health\n", opt.db_path.c_str(),
+    std::fprintf(stderr, "ambdiag-rest: serving %s on %s://%s:%d/api/v1/health\n",
+                 ambdiag::storage::display_location(opt.db_path).c_str(),
                  opt.tls_cert_path.empty() ? "http" : "https", opt.host.c_str(), port);
     int sig = 0;
     sigwait(&stop_signals, &sig);

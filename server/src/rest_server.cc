@@ -11,6 +11,7 @@
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/events.h"
 #include "ambdiag/server/metrics.h"
+#include "events/event_tail.h"
 #include "http_compress.h"
 #include "rate_limit.h"
 #include "reader_pool.h"
@@ -63,6 +64,7 @@ struct RestServer::Impl {
   std::unique_ptr<EventBus> own_events;          // when opt.events is null
   MetricsRegistry& metrics;
   EventBus& events;
+  std::unique_ptr<detail::EventTail> tail;  // the events table into `events`
   detail::ServiceState service;
   detail::RateLimiter limiter;
   MetricFamily<Counter>& requests;
@@ -82,6 +84,9 @@ struct RestServer::Impl {
         own_events(opt.events ? nullptr : std::make_unique<EventBus>()),
         metrics(opt.metrics ? *opt.metrics : *own_metrics),
         events(opt.events ? *opt.events : *own_events),
+        tail(opt.event_poll_ms > 0 ? std::make_unique<detail::EventTail>(opt.db_path, events,
+                                                                          std::chrono::milliseconds(opt.event_poll_ms))
+                                   : nullptr),
         service{routes, metrics, events},
         limiter(opt.rate_limit_per_s, opt.rate_limit_burst),
         requests(metrics.counter("ambdiag_http_requests_total",
@@ -103,6 +108,13 @@ struct RestServer::Impl {
     detail::add_web_routes(routes);
     detail::add_retention_routes(routes);
     register_metrics();
+    // A client that reconnects with an id older than the ring gets the
+    // events after it from the table, on any server.
+    if (tail) events.set_history(detail::events_table_history(pool));
+  }
+
+  ~Impl() {
+    if (tail) events.set_history({});  // a bus given in the options outlives this server
   }
 
   // What the server itself knows: the historian's jobs and runs (read at
@@ -230,6 +242,7 @@ int RestServer::start() {
   const int port = o.port == 0 ? impl_->http.bind_to_any_port(o.host) : (impl_->http.bind_to_port(o.host, o.port) ? o.port : -1);
   if (port <= 0) throw InputError("REST: cannot listen on " + o.host + ":" + std::to_string(o.port));
   impl_->port = port;
+  if (impl_->tail) impl_->tail->start();
   impl_->thread = std::thread([this] { impl_->http.listen_after_bind(); });
   return port;
 }
@@ -239,6 +252,7 @@ void RestServer::stop() {
   impl_->events.close();  // ends the open event streams, which would hold their workers
   impl_->http.stop();
   impl_->thread.join();
+  if (impl_->tail) impl_->tail->stop();
 }
 
 int RestServer::port() const { return impl_->port; }

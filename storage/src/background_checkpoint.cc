@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-#include "sqlite_db.h"
+#include "sql/sqlite/sqlite_db.h"
 
 namespace ambdiag::storage::detail {
 
@@ -145,7 +145,7 @@ void BackgroundCheckpoint::loop() {
         db->check(sqlite3_busy_timeout(db->get(), 10000), "busy_timeout");
         // A connection finds the log only when it first reads the file;
         // before that a checkpoint does nothing (and reports -1 pages).
-        Stmt mode(*db, "PRAGMA journal_mode");
+        SqliteStmt mode(*db, "PRAGMA journal_mode");
         if (!mode.step() || mode.col_text(0) != "wal") throw StorageError(path_ + ": not in WAL mode");
       }
       checkpoint(db->get(), "main", through, true);

@@ -18,10 +18,11 @@
 #include <thread>
 
 #include "ambdiag/storage/historian.h"
+#include "durability.h"
 
 namespace ambdiag::storage::detail {
 
-class BackgroundCheckpoint {
+class BackgroundCheckpoint final : public Durability {
  public:
   // Installs itself as `writer`'s WAL hook (which replaces SQLite's
   // automatic checkpoint): after a commit that leaves `trigger_pages` or
@@ -30,14 +31,14 @@ class BackgroundCheckpoint {
   // so the log stays bounded either way. A commit not yet durable after
   // `durable_within` starts a checkpoint too (the time trigger).
   BackgroundCheckpoint(sqlite3* writer, std::string path, const CheckpointOptions& opt);
-  ~BackgroundCheckpoint();  // finishes a running checkpoint, restores SQLite's automatic one
+  ~BackgroundCheckpoint() override;  // finishes a running checkpoint, restores SQLite's automatic one
   BackgroundCheckpoint(const BackgroundCheckpoint&) = delete;
   BackgroundCheckpoint& operator=(const BackgroundCheckpoint&) = delete;
 
-  CheckpointStats stats() const;
-  std::uint64_t commit_generation() const { return committed_.load(); }
-  std::uint64_t durable_generation() const { return durable_.load(); }
-  void on_durable(std::function<void(std::uint64_t)> listener);
+  CheckpointStats stats() const override;
+  std::uint64_t commit_generation() const override { return committed_.load(); }
+  std::uint64_t durable_generation() const override { return durable_.load(); }
+  void on_durable(std::function<void(std::uint64_t)> listener) override;
 
  private:
   using Clock = std::chrono::steady_clock;

@@ -14,8 +14,12 @@
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
+#include "background_checkpoint.h"
 #include "historian_impl.h"
 #include "schema.h"
+#include "sql/postgres/pg_db.h"
+#include "sql/postgres/pg_schema.h"
+#include "sql/sqlite/sqlite_db.h"
 
 namespace ambdiag::storage {
 
@@ -87,11 +91,48 @@ RunInfo read_run_row(const Stmt& s) {
 
 }  // namespace
 
-Historian Historian::open(const std::string& path, Mode mode) {
+bool is_postgres_location(const std::string& location) {
+  return location.starts_with("postgresql://") || location.starts_with("postgres://");
+}
+
+std::string display_location(const std::string& location) {
+  if (!is_postgres_location(location)) return location;
+  std::string out = location;
+  // postgresql://user:PASSWORD@host/...: the user info ends at the last '@'
+  // before the path.
+  const size_t start = out.find("://") + 3;
+  const size_t end = std::min(out.find('/', start), out.find('?', start));
+  const size_t at = out.rfind('@', end == std::string::npos ? std::string::npos : end);
+  if (at != std::string::npos && at >= start) {
+    const size_t colon = out.find(':', start);
+    if (colon != std::string::npos && colon < at) out.replace(colon + 1, at - colon - 1, "***");
+  }
+  // ...?password=PASSWORD&...
+  for (size_t q = out.find('?'); q != std::string::npos; q = out.find('&', q + 1)) {
+    if (out.compare(q + 1, 9, "password=") != 0) continue;
+    const size_t v = q + 10, e = out.find('&', v);
+    out.replace(v, (e == std::string::npos ? out.size() : e) - v, "***");
+  }
+  return out;
+}
+
+Historian Historian::open(const std::string& location, Mode mode) {
   const bool ro = mode == Mode::read;
-  auto db = detail::Db::open(path, ro ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-  detail::set_pragmas(db, ro);
-  detail::migrate(db, ro);
+  if (is_postgres_location(location)) {
+    if (detail::pg_latest_schema_version() != detail::latest_schema_version())
+      throw std::logic_error("schema version " + std::to_string(detail::latest_schema_version()) +
+                             " in SQLite but " + std::to_string(detail::pg_latest_schema_version()) +
+                             " in PostgreSQL: a migration must be added to both (docs/storage.md)");
+    auto db = detail::PgDb::open(location, ro);
+    detail::pg_migrate(*db, ro);
+    auto impl = std::make_unique<Impl>(std::move(db), ro);
+    impl->ensure_chunk_partitions(std::chrono::system_clock::now());
+    return Historian(std::move(impl));
+  }
+  auto db = std::make_unique<detail::Db>(
+      detail::Db::open(location, ro ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE));
+  detail::set_pragmas(*db, ro);
+  detail::migrate(*db, ro);
   return Historian(std::make_unique<Impl>(std::move(db), ro));
 }
 
@@ -113,8 +154,11 @@ void Historian::begin_run(const RunHeader& header) {
       parsed.sample_rate_hz != header.sample_rate_hz || parsed.channels.size() != header.channels.size())
     throw InputError(ctx + ": the header fields disagree with header_json (build it with run_header_from_json)");
 
+  // PostgreSQL: the day partition its chunks go to exists (once a day).
+  impl_->ensure_chunk_partitions(std::chrono::system_clock::now());
   auto& db = impl_->db;
   Transaction tx(db, Transaction::Kind::write);
+  impl_->lock(Impl::LockSpace::run, header.run_id);  // the check below stays true until the insert
   {
     auto& s = impl_->stmt("SELECT header FROM runs WHERE run_id = ?");
     s.bind(1, header.run_id);
@@ -161,7 +205,7 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
   const std::string ctx = "put_chunks " + quoted(run_id);
   auto& db = impl_->db;
   Transaction tx(db, Transaction::Kind::write);
-  const auto st = impl_->run_state(run_id, "put_chunks");
+  const auto st = impl_->run_state(run_id, "put_chunks", true);
   Impl::require_samples(st, run_id, "put_chunks");  // neither restored nor compared: the bytes are gone
   const auto frame_bytes = static_cast<std::int64_t>(st.n_channels) * 4;
   for (const auto& c : chunks) {
@@ -177,12 +221,25 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
   }
   PutResult result;
   std::int64_t frames = 0;
-  auto& ins = impl_->stmt(
-      "INSERT INTO sample_chunks (run_id, seq, first_frame, n_frames, data) VALUES (?, ?, ?, ?, ?) "
-      "ON CONFLICT (run_id, seq) DO NOTHING");
+  // PostgreSQL's chunks carry their run's created_at, the time they are
+  // partitioned by (pg_schema.cc). No conflict target: the key is
+  // (run_id, seq) in SQLite, (run_id, seq, run_created_at) in PostgreSQL.
+  auto& ins = impl_->dialect() == Dialect::postgres
+                  ? impl_->stmt(
+                        "INSERT INTO sample_chunks (run_id, seq, first_frame, n_frames, data, run_created_at) "
+                        "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING")
+                  : impl_->stmt(
+                        "INSERT INTO sample_chunks (run_id, seq, first_frame, n_frames, data) VALUES (?, ?, ?, ?, ?) "
+                        "ON CONFLICT (run_id, seq) DO NOTHING");
   for (const auto& c : chunks) {
-    ins.reset().bind(1, run_id).bind(2, c.seq).bind(3, c.first_frame).bind(4, c.n_frames).bind_blob(5, c.bytes).run();
-    if (db.changes() == 1) {
+    ins.bind(1, run_id).bind(2, c.seq).bind(3, c.first_frame).bind(4, c.n_frames).bind_blob(5, c.bytes);
+    if (impl_->dialect() == Dialect::postgres) ins.bind(6, st.created_at);
+    ins.send();
+  }
+  const auto inserted = ins.sent();
+  for (size_t k = 0; k < chunks.size(); ++k) {
+    const auto& c = chunks[k];
+    if (inserted[k] == 1) {
       if (st.status == RunStatus::complete)
         throw InputError(ctx + " chunk seq " + std::to_string(c.seq) + ": the run is complete; no new chunks");
       ++result.stored;
@@ -230,9 +287,9 @@ ChunkScan scan_chunks(Historian::Impl& impl, const std::string& run_id, bool wit
   ChunkScan r;
   r.hash = run_checksum_init(kind);
   std::int64_t next_seq = 0, next_frame = 0;
-  auto& s = with_blobs
-                ? impl.stmt("SELECT seq, first_frame, n_frames, data FROM sample_chunks WHERE run_id = ? ORDER BY seq")
-                : impl.stmt("SELECT seq, first_frame, n_frames FROM sample_chunks WHERE run_id = ? ORDER BY seq");
+  auto& s = with_blobs ? impl.stmt("SELECT seq, first_frame, n_frames, data FROM sample_chunks WHERE run_id = ? ORDER BY seq",
+                                   Fetch::one_by_one)
+                       : impl.stmt("SELECT seq, first_frame, n_frames FROM sample_chunks WHERE run_id = ? ORDER BY seq");
   s.bind(1, run_id);
   while (s.step()) {
     const std::int64_t seq = s.col_int(0), first = s.col_int(1), n = s.col_int(2);
@@ -264,7 +321,7 @@ EndResult Historian::end_run(const std::string& run_id, std::int64_t total_frame
   if (total_frames < 0) throw InputError(ctx + ": total_frames must be >= 0");
   auto& db = impl_->db;
   Transaction tx(db, Transaction::Kind::write);
-  const auto st = impl_->run_state(run_id, "end_run");
+  const auto st = impl_->run_state(run_id, "end_run", true);
   if (st.status == RunStatus::complete) {
     if (st.expected_frames == total_frames && st.expected_checksum == checksum)
       return {RunStatus::complete, "", total_frames, checksum, false};  // the same end again
@@ -313,7 +370,7 @@ RunStatus Historian::mark_incomplete(const std::string& run_id, const std::strin
   impl_->require_writer("mark_incomplete");
   if (reason.empty()) throw InputError("mark_incomplete " + quoted(run_id) + ": a reason is required");
   Transaction tx(impl_->db, Transaction::Kind::write);
-  const auto st = impl_->run_state(run_id, "mark_incomplete");
+  const auto st = impl_->run_state(run_id, "mark_incomplete", true);
   if (st.status == RunStatus::complete) return RunStatus::complete;
   impl_->stmt("UPDATE runs SET status = 'incomplete', status_reason = ?, updated_at = ? WHERE run_id = ?")
       .bind(1, reason)
@@ -395,7 +452,7 @@ bool Historian::stream_samples(const std::string& run_id,
                                const std::function<bool(std::span<const std::uint8_t>)>& sink) {
   Transaction tx(impl_->db, Transaction::Kind::read);
   Impl::require_samples(impl_->run_state(run_id, "samples"), run_id, "run");
-  auto& s = impl_->stmt("SELECT data FROM sample_chunks WHERE run_id = ? ORDER BY seq");
+  auto& s = impl_->stmt("SELECT data FROM sample_chunks WHERE run_id = ? ORDER BY seq", Fetch::one_by_one);
   s.bind(1, run_id);
   while (s.step()) {
     if (!sink(s.col_blob(0))) {
@@ -442,11 +499,15 @@ void Historian::checkpoint_in_background(const CheckpointOptions& opt) {
     throw std::invalid_argument("Historian::checkpoint_in_background: need 1 <= trigger_pages <= inline_pages");
   if (opt.durable_within.count() <= 0)
     throw std::invalid_argument("Historian::checkpoint_in_background: durable_within must be > 0");
-  impl_->checkpointer = std::make_unique<detail::BackgroundCheckpoint>(impl_->db.get(), impl_->db.path(), opt);
+  if (impl_->dialect() == Dialect::postgres)  // durable at commit; checkpoints are the server's
+    impl_->checkpointer = std::make_unique<detail::DurableAtCommit>(impl_->db);
+  else
+    impl_->checkpointer = std::make_unique<detail::BackgroundCheckpoint>(static_cast<detail::Db&>(impl_->db).get(),
+                                                                         impl_->db.path(), opt);
 }
 
 namespace {
-detail::BackgroundCheckpoint& tracker(const std::unique_ptr<detail::BackgroundCheckpoint>& c, const char* what) {
+detail::Durability& tracker(const std::unique_ptr<detail::Durability>& c, const char* what) {
   if (!c) throw std::logic_error(std::string("Historian::") + what + " needs checkpoint_in_background");
   return *c;
 }

@@ -13,9 +13,11 @@ namespace ambdiag::storage {
 
 namespace {
 
-#define AMBDIAG_ALARM_COLUMNS                                                                                  \
-  "alarm_id, pump_id, rule, severity, state, active, acknowledged, latched, shelved_until, suppressed_reason, " \
+// After alarm_id: what an insert gives (alarm_id is the database's).
+#define AMBDIAG_ALARM_VALUE_COLUMNS                                                                   \
+  "pump_id, rule, severity, state, active, acknowledged, latched, shelved_until, suppressed_reason, " \
   "out_of_service, raised_at, cleared_at, updated_at, run_id, message, fault, value"
+#define AMBDIAG_ALARM_COLUMNS "alarm_id, " AMBDIAG_ALARM_VALUE_COLUMNS
 
 AlarmRecord read_alarm_row(const Stmt& s) {
   AlarmRecord a;
@@ -47,25 +49,27 @@ AlarmEvent read_event_row(const Stmt& s) {
           s.col_text(6), s.col_text(7), s.col_text(8), s.col_text(9), s.col_text(10)};
 }
 
-// Binds the alarm's columns 2.. in AMBDIAG_ALARM_COLUMNS order (1 is alarm_id).
-void bind_alarm(Stmt& s, const AlarmRecord& a) {
-  s.bind(2, a.pump_id)
-      .bind(3, a.rule)
-      .bind(4, a.severity)
-      .bind(5, a.state)
-      .bind(6, std::int64_t{a.active})
-      .bind(7, std::int64_t{a.acknowledged})
-      .bind(8, std::int64_t{a.latched})
-      .bind(10, a.suppressed_reason)
-      .bind(11, std::int64_t{a.out_of_service})
-      .bind(12, a.raised_at)
-      .bind(14, a.updated_at)
-      .bind(15, a.run_id)
-      .bind(16, a.message);
-  if (a.shelved_until) s.bind(9, *a.shelved_until); else s.bind_null(9);
-  if (a.cleared_at) s.bind(13, *a.cleared_at); else s.bind_null(13);
-  if (a.fault) s.bind(17, *a.fault); else s.bind_null(17);
-  if (a.value) s.bind(18, *a.value); else s.bind_null(18);
+// Binds the alarm's columns in AMBDIAG_ALARM_VALUE_COLUMNS order to
+// parameters first, first + 1, ...
+void bind_alarm(Stmt& s, const AlarmRecord& a, int first) {
+  const int o = first - 2;  // the numbers below are those of first = 2
+  s.bind(o + 2, a.pump_id)
+      .bind(o + 3, a.rule)
+      .bind(o + 4, a.severity)
+      .bind(o + 5, a.state)
+      .bind(o + 6, std::int64_t{a.active})
+      .bind(o + 7, std::int64_t{a.acknowledged})
+      .bind(o + 8, std::int64_t{a.latched})
+      .bind(o + 10, a.suppressed_reason)
+      .bind(o + 11, std::int64_t{a.out_of_service})
+      .bind(o + 12, a.raised_at)
+      .bind(o + 14, a.updated_at)
+      .bind(o + 15, a.run_id)
+      .bind(o + 16, a.message);
+  if (a.shelved_until) s.bind(o + 9, *a.shelved_until); else s.bind_null(o + 9);
+  if (a.cleared_at) s.bind(o + 13, *a.cleared_at); else s.bind_null(o + 13);
+  if (a.fault) s.bind(o + 17, *a.fault); else s.bind_null(o + 17);
+  if (a.value) s.bind(o + 18, *a.value); else s.bind_null(o + 18);
 }
 
 // Every row of a stepped-through statement, read by `read_row`.
@@ -113,6 +117,11 @@ void Historian::apply_alarm_changes(AlarmChanges& c) {
   for (const auto& [index, e] : c.events)
     if (index >= c.alarms.size()) throw InputError("apply_alarm_changes: an event names no alarm");
   Transaction tx(impl_->db, Transaction::Kind::write);
+  // One journal writer at a time (PostgreSQL; SQLite's writers are one
+  // anyway): the seqs then grow in commit order, so a reader polling
+  // "after seq N" never misses one committed later with a smaller number;
+  // and the open-alarm check below stays true until the insert.
+  impl_->lock(Impl::LockSpace::alarm_journal, "");
   for (auto& a : c.alarms) {
     if (a.alarm_id == 0) {
       auto& open = impl_->stmt("SELECT alarm_id FROM alarms WHERE pump_id = ? AND rule = ? AND state <> 'normal'");
@@ -121,10 +130,10 @@ void Historian::apply_alarm_changes(AlarmChanges& c) {
         throw InputError("apply_alarm_changes: " + alarm_ref(a) + " is open already (alarm " +
                          std::to_string(open.col_int(0)) + ")");
       open.reset();
-      auto& ins = impl_->stmt("INSERT INTO alarms (" AMBDIAG_ALARM_COLUMNS
-                              ") VALUES (NULL, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18) "
+      auto& ins = impl_->stmt("INSERT INTO alarms (" AMBDIAG_ALARM_VALUE_COLUMNS
+                              ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
                               "RETURNING alarm_id");
-      bind_alarm(ins, a);
+      bind_alarm(ins, a, 1);
       if (!ins.step()) throw StorageError("apply_alarm_changes: the insert returned no alarm_id");
       a.alarm_id = ins.col_int(0);
       ins.reset();
@@ -134,7 +143,7 @@ void Historian::apply_alarm_changes(AlarmChanges& c) {
           "latched = ?8, shelved_until = ?9, suppressed_reason = ?10, out_of_service = ?11, raised_at = ?12, "
           "cleared_at = ?13, updated_at = ?14, run_id = ?15, message = ?16, fault = ?17, value = ?18 WHERE alarm_id = ?1");
       up.bind(1, a.alarm_id);
-      bind_alarm(up, a);
+      bind_alarm(up, a, 2);
       up.run();
       if (impl_->db.changes() != 1) throw InputError("apply_alarm_changes: no alarm " + std::to_string(a.alarm_id));
     }
@@ -192,8 +201,8 @@ std::optional<AlarmRecord> Historian::find_alarm(std::int64_t alarm_id) {
 
 std::vector<AlarmRecord> Historian::list_alarms(const AlarmFilter& f) {
   if (f.limit < 1) throw InputError("list_alarms: limit must be >= 1");
-  auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE (?1 IS NULL OR pump_id = ?1) "
-                        "AND (?2 IS NULL OR state = ?2) AND (?3 IS NULL OR active = ?3) ORDER BY alarm_id DESC LIMIT ?4");
+  auto& s = impl_->stmt("SELECT " AMBDIAG_ALARM_COLUMNS " FROM alarms WHERE (pump_id = ?1 OR ?1 IS NULL) "
+                        "AND (state = ?2 OR ?2 IS NULL) AND (active = ?3 OR ?3 IS NULL) ORDER BY alarm_id DESC LIMIT ?4");
   if (f.pump_id) s.bind(1, *f.pump_id); else s.bind_null(1);
   if (f.state) s.bind(2, *f.state); else s.bind_null(2);
   if (f.active) s.bind(3, std::int64_t{*f.active}); else s.bind_null(3);
@@ -285,7 +294,7 @@ std::optional<RunInfo> Historian::next_run_for_alarms(const std::string& pump_id
                                                       const std::optional<std::pair<std::string, std::string>>& after) {
   auto& s = impl_->stmt(
       "SELECT run_id FROM runs WHERE pump_id = ?1 AND status = 'complete' AND kind = 'identification' "
-      "AND (?2 IS NULL OR (started_at, run_id) > (?2, ?3)) ORDER BY started_at, run_id LIMIT 1");
+      "AND ((started_at, run_id) > (?2, ?3) OR ?2 IS NULL) ORDER BY started_at, run_id LIMIT 1");
   s.bind(1, pump_id);
   if (after) s.bind(2, after->first).bind(3, after->second); else s.bind_null(2).bind_null(3);
   if (!s.step()) return std::nullopt;

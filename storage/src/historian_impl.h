@@ -9,43 +9,70 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
-#include "background_checkpoint.h"
-#include "sqlite_db.h"
+#include "durability.h"
+#include "sql/connection.h"
 
 namespace ambdiag::storage {
 
+using detail::Dialect;
+using detail::Fetch;
 using detail::Stmt;
 using detail::Transaction;
 
 std::string now_utc();  // server clock, ISO 8601 UTC with milliseconds
-// The same fixed format of any time ("2026-11-26T10:00:00.000Z"): text
-// order is time order, so it compares with created_at in SQL.
+// The same fixed format of any time ("2026-11-26T10:00:00.000Z", e.g. a
+// lease's end): text order is time order, so it compares with created_at in SQL.
 std::string utc_ms(std::chrono::system_clock::time_point at);
 std::string hex64(std::uint64_t v);
 RunStatus status_from_text(const std::string& s);
 inline std::string quoted(const std::string& id) { return "'" + id + "'"; }
 
 struct Historian::Impl {
-  detail::Db db;
+  std::unique_ptr<detail::Connection> conn;
+  detail::Connection& db;  // *conn
   bool read_only;
   int snapshot_depth = 0;
   std::optional<Transaction> snapshot_tx;
   std::optional<Transaction> batch_tx;  // an open WriteBatch
-  std::unordered_map<const char*, Stmt> stmts;  // keyed by the SQL literal's address
+  std::unordered_map<const char*, std::unique_ptr<Stmt>> stmts;  // keyed by the SQL literal's address
   // Last: stopped (its hook removed) before the connection closes.
-  std::unique_ptr<detail::BackgroundCheckpoint> checkpointer;
+  std::unique_ptr<detail::Durability> checkpointer;
 
-  Impl(detail::Db d, bool ro) : db(std::move(d)), read_only(ro) {}
+  Impl(std::unique_ptr<detail::Connection> c, bool ro) : conn(std::move(c)), db(*conn), read_only(ro) {}
+
+  Dialect dialect() const { return db.dialect(); }
 
   // A cached prepared statement, reset and ready for bindings. `sql` must be
-  // a string literal; one statement is never used twice at once.
-  Stmt& stmt(const char* sql) {
+  // a string literal; one statement is never used twice at once. `fetch`
+  // (sql/connection.h) is fixed by the first call.
+  Stmt& stmt(const char* sql, Fetch fetch = Fetch::all) {
     auto it = stmts.find(sql);
-    if (it == stmts.end()) it = stmts.emplace(sql, Stmt(db, sql)).first;
-    return it->second.reset();
+    if (it == stmts.end()) it = stmts.emplace(sql, db.prepare(sql, fetch)).first;
+    return it->second->reset();
+  }
+
+  // What a write method serialises on beside the others of the same key.
+  // (5 is the schema migration's, pg_schema.cc.)
+  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6, retention = 7, partitions = 8 };
+  // Inside a write transaction: waits until no other transaction holds the
+  // key's lock, and holds it until this one ends. SQLite: nothing to do,
+  // BEGIN IMMEDIATE already made this the only writer of the file.
+  // PostgreSQL: several processes write at once (READ COMMITTED), so a
+  // check followed by a write (the next version number, "unless one
+  // exists", a run's state) takes a transaction-scoped advisory lock on the
+  // key's hash, with the schema's name: historians in other schemas of
+  // the database never wait for this one (a collision only makes two keys
+  // wait for each other).
+  void lock(LockSpace space, const std::string& key) {
+    if (dialect() != Dialect::postgres) return;
+    stmt("SELECT pg_advisory_xact_lock(CAST(? AS integer), hashtext(current_schema() || ?))")
+        .bind(1, static_cast<std::int64_t>(space))
+        .bind(2, key)
+        .run();
   }
 
   // Registers the pump if it is new (first_seen = now).
@@ -53,15 +80,28 @@ struct Historian::Impl {
     stmt("INSERT INTO pumps (pump_id, first_seen) VALUES (?, ?) ON CONFLICT (pump_id) DO NOTHING").bind(1, pump_id).bind(2, now).run();
   }
   // The pump's next version number: `sql` (a literal) selects the highest
-  // held + 1 for the bound pump. Inside BEGIN IMMEDIATE: no other writer can
-  // take the same number.
+  // held + 1 for the bound pump. No other writer can take the same number
+  // before this transaction ends: SQLite's BEGIN IMMEDIATE, PostgreSQL's
+  // lock on the pump.
   std::int64_t next_version(const char* sql, const std::string& pump_id) {
+    lock(LockSpace::pump, pump_id);
     auto& next = stmt(sql);
     next.bind(1, pump_id).step();
     const auto version = next.col_int(0);
     next.reset();
     return version;
   }
+
+  // PostgreSQL: sample_chunks' day partitions (historian_partitions.cc).
+  // `from`, `to`: the day's bounds in created_at's format.
+  struct ChunkPartition {
+    std::string name, from, to;
+  };
+  std::vector<ChunkPartition> chunk_partitions();  // by day
+  // Today's and the next two days' partitions, unless this process made
+  // them today; nothing on SQLite, read-only or inside a transaction.
+  void ensure_chunk_partitions(std::chrono::system_clock::time_point now);
+  std::string partitions_through;  // the last day (YYYYMMDD) ensured
 
   void require_writer(const char* what) const {
     if (read_only) throw std::logic_error(std::string("Historian::") + what + " on a read-only connection");
@@ -72,15 +112,21 @@ struct Historian::Impl {
     RunStatus status;
     std::optional<std::int64_t> expected_frames;
     std::optional<std::uint64_t> expected_checksum;
+    std::string created_at;  // the time PostgreSQL's sample_chunks are partitioned by
     std::optional<std::string> samples_dropped_at;  // retention dropped (or is dropping) the samples
   };
-  RunState run_state(const std::string& run_id, const char* what) {
+  // `write`: called inside a write transaction that acts on the state, which
+  // then stays as read until it ends (put_chunks, end_run and
+  // mark_incomplete of one run take turns).
+  RunState run_state(const std::string& run_id, const char* what, bool write = false) {
+    if (write) lock(LockSpace::run, run_id);
     auto& s = stmt(
-        "SELECT n_channels, status, expected_frames, expected_checksum, samples_dropped_at FROM runs WHERE run_id = ?");
+        "SELECT n_channels, status, expected_frames, expected_checksum, created_at, samples_dropped_at FROM runs "
+        "WHERE run_id = ?");
     s.bind(1, run_id);
     if (!s.step()) throw InputError(std::string(what) + ": unknown run " + quoted(run_id));
     RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt,
-                s.col_opt_text(4)};
+                s.col_text(4), s.col_opt_text(5)};
     if (auto c = s.col_opt_int(3)) st.expected_checksum = std::bit_cast<std::uint64_t>(*c);
     s.reset();
     return st;

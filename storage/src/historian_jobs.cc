@@ -1,14 +1,22 @@
-// Historian: the job queue (tables jobs, job_artifacts; schema v4).
+// Historian: the job queue (tables jobs, job_artifacts; schema v4, leases v8).
 //
 // A job moves queued -> running -> done | failed, or to cancelled from
-// queued or running; requeue_running_jobs takes running back to queued
-// (the server died with it). `attempts` counts the claims, and a worker
-// names its claim by that number: finish_job, fail_job and set_job_progress
-// only change a job that is still running that attempt, so a worker whose
-// job was requeued, cancelled or claimed again cannot store a second result.
-// Each call is one write transaction (BEGIN IMMEDIATE), so two Historian
-// connections on one file claim, finish and enqueue without a race: SQLite
-// serialises the writers (busy timeout) and every check is re-done inside.
+// queued or running; requeue_expired_jobs (and, for one server at its
+// start, requeue_running_jobs) takes running back to queued. `attempts`
+// counts the claims, and a worker names its claim by that number; a claim
+// also sets a lease that the worker renews. finish_job, fail_job,
+// set_job_progress and renew_job_lease only change a job that its attempt
+// still holds (AMBDIAG_JOB_HELD: running, that attempt, lease not expired,
+// at the time of the write, taken inside the transaction), so a worker
+// whose job was requeued, cancelled, claimed again or whose lease ran out
+// cannot store a second result. Each call is one write transaction (BEGIN
+// IMMEDIATE), so connections of several processes on one file claim, finish
+// and enqueue without a race: SQLite serialises the writers (busy timeout)
+// and every check is re-done inside.
+// On PostgreSQL writers run at once: a claim locks the row it takes and
+// skips those others hold (FOR UPDATE OF j SKIP LOCKED), the enqueue relies
+// on the key's unique constraint, and the fenced updates re-check their
+// WHERE on the row they lock (docs/storage.md "Schema v8").
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -42,7 +50,7 @@ namespace {
 // The job columns in the order read_job_row reads them.
 #define AMBDIAG_JOB_COLUMNS                                                                                   \
   "job_id, kind, pump_id, run_id, model_version, reference_version, status, progress, attempts, params, " \
-  "depends_on, created_at, started_at, finished_at, error, result, worker"
+  "depends_on, created_at, started_at, finished_at, error, result, worker, lease_expires_at"
 
 Job read_job_row(const Stmt& s) {
   Job j;
@@ -63,10 +71,27 @@ Job read_job_row(const Stmt& s) {
   j.error = s.col_opt_text(14);
   j.result_json = s.col_opt_text(15);
   j.worker = s.col_text(16);
+  j.lease_expires_at = s.col_opt_text(17);
   return j;
 }
 
 std::string job_ref(std::int64_t job_id) { return "job " + std::to_string(job_id); }
+
+// The condition under which attempt ?2 of job ?1 holds it at time ?3 (the
+// fence of every write of an attempt, historian.h claim_job); the
+// statements' own parameters are ?4 on. ?3 is taken inside the
+// transaction, after the write lock: a wait for the lock must not stretch
+// a lease.
+#define AMBDIAG_JOB_HELD "job_id = ?1 AND status = 'running' AND attempts = ?2 AND lease_expires_at > ?3"
+
+// Binds the fence; `now` must outlive the statement's steps (bound uncopied).
+Stmt& bind_held(Stmt& s, std::int64_t job_id, int attempt, const std::string& now) {
+  return s.bind(1, job_id).bind(2, std::int64_t{attempt}).bind(3, now);
+}
+
+std::string lease_end(std::chrono::milliseconds lease) {
+  return utc_ms(std::chrono::system_clock::now() + std::max(lease, std::chrono::milliseconds(1)));
+}
 
 }  // namespace
 
@@ -89,9 +114,11 @@ std::pair<std::int64_t, bool> Historian::enqueue_job(const JobKey& key, const st
     if (!d.step()) throw InputError("enqueue_job " + quoted(key.kind) + ": depends on unknown " + job_ref(*depends_on));
     d.reset();
   }
+  // A writer of another process may enqueue the same key meanwhile
+  // (PostgreSQL): then its job is the one, found below.
   auto& ins = impl_->stmt(
       "INSERT INTO jobs (kind, pump_id, run_id, model_version, reference_version, status, params, depends_on, "
-      "created_at) VALUES (?, ?, ?, ?, ?, 'queued', ?, ?, ?) RETURNING job_id");
+      "created_at) VALUES (?, ?, ?, ?, ?, 'queued', ?, ?, ?) ON CONFLICT DO NOTHING RETURNING job_id");
   ins.bind(1, key.kind)
       .bind(2, key.pump_id)
       .bind(3, key.run_id)
@@ -103,14 +130,20 @@ std::pair<std::int64_t, bool> Historian::enqueue_job(const JobKey& key, const st
     ins.bind(7, *depends_on);
   else
     ins.bind_null(7);
-  if (!ins.step()) throw StorageError("enqueue_job: the insert returned no job_id");
+  if (!ins.step()) {
+    auto held = find_job(key);
+    if (!held) throw StorageError("enqueue_job: the insert returned no job_id");
+    tx.commit();
+    return {held->job_id, false};
+  }
   const std::int64_t id = ins.col_int(0);
   ins.reset();
   tx.commit();
   return {id, true};
 }
 
-std::optional<Job> Historian::claim_job(const std::string& worker, const std::vector<std::string>& kinds) {
+std::optional<Job> Historian::claim_job(const std::string& worker, const std::vector<std::string>& kinds,
+                                        std::chrono::milliseconds lease) {
   impl_->require_writer("claim_job");
   const std::string kinds_json = nlohmann::json(kinds).dump();
   Transaction tx(impl_->db, Transaction::Kind::write);
@@ -119,11 +152,21 @@ std::optional<Job> Historian::claim_job(const std::string& worker, const std::ve
   // failed or was cancelled fails in turn (its own dependents next time
   // round), and the search goes on.
   for (;;) {
-    auto& pick = impl_->stmt(
-        "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = j.depends_on "
-        "WHERE j.status = 'queued' AND (?1 IS NULL OR j.kind IN (SELECT value FROM json_each(?1))) "
-        "AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
-        "ORDER BY j.job_id LIMIT 1");
+    // PostgreSQL: the row is locked for this claim, and rows other claims
+    // hold are skipped (their claimers will have taken them when they
+    // commit); the kinds are a JSON array for both (json_each or
+    // json_array_elements_text).
+    auto& pick = impl_->dialect() == Dialect::postgres
+                     ? impl_->stmt(
+                           "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_array_elements_text(CAST(?1 AS json))) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN "
+                           "('done', 'failed', 'cancelled')) ORDER BY j.job_id LIMIT 1 FOR UPDATE OF j SKIP LOCKED")
+                     : impl_->stmt(
+                           "SELECT j.job_id, j.depends_on, d.status, d.error FROM jobs j LEFT JOIN jobs d ON d.job_id = "
+                           "j.depends_on WHERE j.status = 'queued' AND (j.kind IN (SELECT value FROM "
+                           "json_each(?1)) OR ?1 IS NULL) AND (j.depends_on IS NULL OR d.status IN ('done', 'failed', 'cancelled')) "
+                           "ORDER BY j.job_id LIMIT 1");
     if (kinds.empty())
       pick.bind_null(1);
     else
@@ -150,10 +193,11 @@ std::optional<Job> Historian::claim_job(const std::string& worker, const std::ve
     }
     impl_->stmt(
             "UPDATE jobs SET status = 'running', attempts = attempts + 1, started_at = ?, finished_at = NULL, "
-            "worker = ?, progress = 0, error = NULL, result = NULL WHERE job_id = ?")
+            "worker = ?, progress = 0, error = NULL, result = NULL, lease_expires_at = ? WHERE job_id = ?")
         .bind(1, now)
         .bind(2, worker)
-        .bind(3, id)
+        .bind(3, lease_end(lease))
+        .bind(4, id)
         .run();
     auto job = find_job(id);
     if (!job) throw StorageError("claim_job: " + job_ref(id) + " vanished inside the transaction");
@@ -167,10 +211,21 @@ bool Historian::set_job_progress(std::int64_t job_id, int attempt, double progre
   if (std::isnan(progress)) throw InputError("set_job_progress " + job_ref(job_id) + ": progress is NaN");
   progress = std::clamp(progress, 0.0, 1.0);
   Transaction tx(impl_->db, Transaction::Kind::write);
-  impl_->stmt("UPDATE jobs SET progress = ? WHERE job_id = ? AND status = 'running' AND attempts = ?")
-      .bind(1, progress)
-      .bind(2, job_id)
-      .bind(3, std::int64_t{attempt})
+  const std::string now = now_utc();
+  bind_held(impl_->stmt("UPDATE jobs SET progress = ?4 WHERE " AMBDIAG_JOB_HELD), job_id, attempt, now)
+      .bind(4, progress)
+      .run();
+  if (impl_->db.changes() != 1) return false;
+  tx.commit();
+  return true;
+}
+
+bool Historian::renew_job_lease(std::int64_t job_id, int attempt, std::chrono::milliseconds lease) {
+  impl_->require_writer("renew_job_lease");
+  Transaction tx(impl_->db, Transaction::Kind::write);
+  const std::string now = now_utc(), until = lease_end(lease);
+  bind_held(impl_->stmt("UPDATE jobs SET lease_expires_at = ?4 WHERE " AMBDIAG_JOB_HELD), job_id, attempt, now)
+      .bind(4, until)
       .run();
   if (impl_->db.changes() != 1) return false;
   tx.commit();
@@ -189,14 +244,12 @@ bool Historian::finish_job(std::int64_t job_id, int attempt, const std::string& 
       throw InputError("finish_job " + job_ref(job_id) + ": file " + quoted(a.name) + " given twice");
   }
   Transaction tx(impl_->db, Transaction::Kind::write);
+  const std::string now = now_utc();
   // The fence: only the attempt that holds the job stores its result.
-  impl_->stmt(
-          "UPDATE jobs SET status = 'done', result = ?, error = NULL, progress = 1, finished_at = ? "
-          "WHERE job_id = ? AND status = 'running' AND attempts = ?")
-      .bind(1, result_json)
-      .bind(2, now_utc())
-      .bind(3, job_id)
-      .bind(4, std::int64_t{attempt})
+  bind_held(impl_->stmt("UPDATE jobs SET status = 'done', result = ?4, error = NULL, progress = 1, finished_at = ?3, "
+                        "lease_expires_at = NULL WHERE " AMBDIAG_JOB_HELD),
+            job_id, attempt, now)
+      .bind(4, result_json)
       .run();
   if (impl_->db.changes() != 1) return false;
   // A done job is never claimed again, so there is nothing of another
@@ -227,51 +280,91 @@ bool Historian::finish_job(std::int64_t job_id, int attempt, const std::string& 
 bool Historian::fail_job(std::int64_t job_id, int attempt, const std::string& error) {
   impl_->require_writer("fail_job");
   Transaction tx(impl_->db, Transaction::Kind::write);
-  impl_->stmt(
-          "UPDATE jobs SET status = 'failed', error = ?, finished_at = ? "
-          "WHERE job_id = ? AND status = 'running' AND attempts = ?")
-      .bind(1, error.empty() ? std::string("failed without a message") : error)
-      .bind(2, now_utc())
-      .bind(3, job_id)
-      .bind(4, std::int64_t{attempt})
+  const std::string now = now_utc();
+  bind_held(impl_->stmt("UPDATE jobs SET status = 'failed', error = ?4, finished_at = ?3, lease_expires_at = NULL "
+                        "WHERE " AMBDIAG_JOB_HELD),
+            job_id, attempt, now)
+      .bind(4, error.empty() ? std::string("failed without a message") : error)
       .run();
   if (impl_->db.changes() != 1) return false;
   tx.commit();
   return true;
 }
 
-int Historian::requeue_running_jobs(int max_attempts) {
-  impl_->require_writer("requeue_running_jobs");
+bool Historian::release_job(std::int64_t job_id, int attempt) {
+  impl_->require_writer("release_job");
   Transaction tx(impl_->db, Transaction::Kind::write);
-  // A job that was running at every one of max_attempts server deaths is
-  // likely what kills the server: it fails instead of being claimed again.
-  impl_->stmt("UPDATE jobs SET status = 'failed', finished_at = ?, worker = '', "
-              "error = 'gave up after ' || attempts || ' attempts: the server stopped during each' "
-              "WHERE status = 'running' AND attempts >= ?")
-      .bind(1, now_utc())
-      .bind(2, static_cast<std::int64_t>(std::max(1, max_attempts)))
+  const std::string now = now_utc();
+  bind_held(impl_->stmt("UPDATE jobs SET status = 'queued', progress = 0, worker = '', lease_expires_at = NULL "
+                        "WHERE " AMBDIAG_JOB_HELD),
+            job_id, attempt, now)
       .run();
+  if (impl_->db.changes() != 1) return false;
+  tx.commit();
+  return true;
+}
+
+namespace {
+
+// The running jobs (with `expired_only`, those whose lease has expired),
+// queued again or failed after max_attempts claims with "gave up after N
+// attempts: <why>".
+Historian::Requeued requeue_running(Historian::Impl& impl, bool expired_only, int max_attempts, const std::string& why) {
+  Historian::Requeued r;
+  Transaction tx(impl.db, Transaction::Kind::write);
+  const std::string now = now_utc();
+  const std::int64_t only_expired = expired_only ? 1 : 0;
+  // A job that was running at every one of max_attempts deaths of its
+  // worker is likely what kills it: it fails instead of being claimed again.
+#define AMBDIAG_JOB_LOST "status = 'running' AND (?1 = 0 OR lease_expires_at IS NULL OR lease_expires_at <= ?2)"
+  impl.stmt("UPDATE jobs SET status = 'failed', finished_at = ?2, worker = '', lease_expires_at = NULL, "
+            "error = 'gave up after ' || attempts || ' attempts: ' || ?4 "
+            "WHERE " AMBDIAG_JOB_LOST " AND attempts >= ?3")
+      .bind(1, only_expired)
+      .bind(2, now)
+      .bind(3, static_cast<std::int64_t>(std::max(1, max_attempts)))
+      .bind(4, why)
+      .run();
+  r.failed = impl.db.changes();
   // attempts stays: the next claim is a new attempt, and the old one's
   // worker (if it still lives) is refused.
-  impl_->stmt("UPDATE jobs SET status = 'queued', progress = 0, worker = '' WHERE status = 'running'").run();
-  const int n = impl_->db.changes();
+  impl.stmt("UPDATE jobs SET status = 'queued', progress = 0, worker = '', lease_expires_at = NULL WHERE " AMBDIAG_JOB_LOST)
+      .bind(1, only_expired)
+      .bind(2, now)
+      .run();
+#undef AMBDIAG_JOB_LOST
+  r.requeued = impl.db.changes();
   tx.commit();
-  return n;
+  return r;
+}
+
+}  // namespace
+
+int Historian::requeue_running_jobs(int max_attempts) {
+  impl_->require_writer("requeue_running_jobs");
+  return requeue_running(*impl_, false, max_attempts, "the server stopped during each").requeued;
+}
+
+Historian::Requeued Historian::requeue_expired_jobs(int max_attempts) {
+  impl_->require_writer("requeue_expired_jobs");
+  return requeue_running(*impl_, true, max_attempts, "each lost its lease (its worker died or stalled)");
 }
 
 int Historian::cancel_superseded_jobs(const std::string& pump_id, const std::string& kind, int model_version,
                                       int reference_version) {
   impl_->require_writer("cancel_superseded_jobs");
   Transaction tx(impl_->db, Transaction::Kind::write);
+  const std::string error = "superseded by model version " + std::to_string(model_version) + ", reference version " +
+                            std::to_string(reference_version);
   impl_->stmt(
-          "UPDATE jobs SET status = 'cancelled', finished_at = ?1, "
-          "error = 'superseded by model version ' || ?4 || ', reference version ' || ?5 "
+          "UPDATE jobs SET status = 'cancelled', finished_at = ?1, error = ?6 "
           "WHERE pump_id = ?2 AND kind = ?3 AND status = 'queued' AND (model_version < ?4 OR reference_version < ?5)")
       .bind(1, now_utc())
       .bind(2, pump_id)
       .bind(3, kind)
       .bind(4, std::int64_t{model_version})
       .bind(5, std::int64_t{reference_version})
+      .bind(6, error)
       .run();
   const int n = impl_->db.changes();
   tx.commit();
@@ -282,7 +375,7 @@ bool Historian::cancel_job(std::int64_t job_id, const std::string& reason) {
   impl_->require_writer("cancel_job");
   Transaction tx(impl_->db, Transaction::Kind::write);
   impl_->stmt(
-          "UPDATE jobs SET status = 'cancelled', error = ?, finished_at = ? "
+          "UPDATE jobs SET status = 'cancelled', error = ?, finished_at = ?, lease_expires_at = NULL "
           "WHERE job_id = ? AND status IN ('queued', 'running')")
       .bind(1, reason.empty() ? std::string("cancelled") : reason)
       .bind(2, now_utc())
@@ -322,7 +415,7 @@ std::vector<Job> Historian::list_jobs(const JobFilter& filter) {
   // One statement per leading key, so that the planner walks that key's
   // index (newest first) and the other conditions only filter.
 #define AMBDIAG_JOB_FILTERS \
-  "(?1 IS NULL OR run_id = ?1) AND (?2 IS NULL OR pump_id = ?2) AND (?3 IS NULL OR kind = ?3) AND (?4 IS NULL OR status = ?4)"
+  "(run_id = ?1 OR ?1 IS NULL) AND (pump_id = ?2 OR ?2 IS NULL) AND (kind = ?3 OR ?3 IS NULL) AND (status = ?4 OR ?4 IS NULL)"
   auto& s = filter.run_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE run_id = ?1 AND " AMBDIAG_JOB_FILTERS
                                         " ORDER BY job_id DESC LIMIT ?5")
             : filter.pump_id ? impl_->stmt("SELECT " AMBDIAG_JOB_COLUMNS " FROM jobs WHERE pump_id = ?2 AND " AMBDIAG_JOB_FILTERS

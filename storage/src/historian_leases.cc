@@ -153,7 +153,8 @@ bool Historian::release_ingest_lease(const std::string& group, const std::string
   auto& release = impl_->stmt(
       "UPDATE ingest_leases SET holder = '', renewals = renewals + 1, expires_at = ? "
       "WHERE ingest_group = ? AND holder = ? AND epoch = ?");
-  release.bind(1, now_utc()).bind(2, group).bind(3, holder).bind(4, epoch);
+  const std::string now = now_utc();  // bound text is not copied: it must outlive the run
+  release.bind(1, now).bind(2, group).bind(3, holder).bind(4, epoch);
   return set_if_matched(*impl_, release, tx);
 }
 

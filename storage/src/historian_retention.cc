@@ -1,15 +1,18 @@
-// Historian: retention (schema v8; retention.h, docs/storage.md
+// Historian: retention (schema v9; retention.h, docs/storage.md
 // "Retention"). Each pump's policy is versioned like its models; the sweep
 // plans from reads, then drops run by run, each drop a write transaction
 // that re-checks its run (still held, not receiving, not needed) so that it
 // is idempotent beside ingest, jobs and another sweep. A run's samples go in
 // transactions of at most max_bytes_per_transaction: the first marks the run
 // `dropping` (from then on it reads as dropped), the last `dropped`; a drop a
-// crash interrupted is finished by the next sweep.
+// crash interrupted is finished by the next sweep. On PostgreSQL a day
+// partition of sample_chunks none of whose runs is kept goes whole first
+// (drop_partitions), in one transaction with its runs' marks.
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -57,6 +60,7 @@ class Sweep {
   bool take_lease() {
     const auto now = SystemClock::now();
     Transaction tx(impl_.db, Transaction::Kind::write);
+    impl_.lock(Historian::Impl::LockSpace::retention, "sweep");  // PostgreSQL: the read and the take as one
     auto& held = impl_.stmt("SELECT holder, expires_at FROM retention_lease WHERE name = 'sweep'");
     if (held.step()) {
       const std::string holder = held.col_text(0), until = held.col_text(1);
@@ -123,7 +127,8 @@ class Sweep {
   // Drops a crashed sweep left half done.
   void finish_interrupted() {
     auto& s = impl_.stmt(
-        "SELECT run_id, pump_id, (SELECT coalesce(sum(length(data)), 0) FROM sample_chunks c WHERE c.run_id = runs.run_id) "
+        "SELECT run_id, pump_id, (SELECT CAST(coalesce(sum(length(data)), 0) AS bigint) FROM sample_chunks c WHERE c.run_id = "
+        "runs.run_id) "
         "FROM runs WHERE samples_state = 'dropping' ORDER BY run_id");
     std::vector<SweptRun> left;
     while (s.step()) left.push_back({s.col_text(0), s.col_text(1), "samples", s.col_int(2), "interrupted"});
@@ -146,7 +151,75 @@ class Sweep {
     if (p.monitoring_days) monitoring(pump_id, *p.monitoring_days);
   }
 
+  // PostgreSQL: each past day partition of sample_chunks none of whose
+  // runs is kept (every run in it is past its pump's samples_days, not
+  // needed, not receiving, or already dropped) is dropped whole, its runs
+  // marked dropped with their bytes in the same transaction. That
+  // transaction locks sample_chunks first (DROP needs it exclusively, and
+  // taking it first leaves no lock to wait for in a circle with ingest), so
+  // it waits for ingest's open transactions and holds new ones back for its
+  // length. A partition with a kept run stays; its other runs go row by
+  // row in pump().
+  void drop_partitions(const std::map<std::string, RetentionPolicy>& policies) {
+    std::map<std::string, std::string> cutoff;  // pump -> created_at before which its samples go
+    for (const auto& [pump_id, p] : policies)
+      if (p.samples_days) cutoff[pump_id] = utc_ms(days_before(opt_.now, *p.samples_days));
+    const std::string now = utc_ms(SystemClock::now());
+    for (const auto& part : impl_.chunk_partitions()) {
+      if (part.to > now) break;  // its day is not over: a run may still be received into it
+      if (!go_on()) return;
+      if (!partition_droppable(part, cutoff)) continue;
+      std::vector<SweptRun> dropped;
+      try {
+        write([&] {
+          impl_.db.exec("LOCK TABLE sample_chunks IN ACCESS EXCLUSIVE MODE", "lock sample_chunks");
+          if (!partition_droppable(part, cutoff)) return false;  // changed since the plan
+          const std::string sql =
+              "WITH b AS (SELECT run_id, CAST(sum(length(data)) AS bigint) AS n FROM " + part.name +
+              " GROUP BY run_id) UPDATE runs SET samples_state = 'dropped', samples_dropped_at = "
+              "coalesce(samples_dropped_at, ?), samples_dropped_bytes = samples_dropped_bytes + coalesce((SELECT n FROM "
+              "b WHERE b.run_id = runs.run_id), 0) WHERE samples_state <> 'dropped' AND (created_at >= ? AND created_at "
+              "< ? OR run_id IN (SELECT run_id FROM b)) RETURNING run_id, pump_id, coalesce((SELECT n FROM b WHERE "
+              "b.run_id = runs.run_id), 0)";
+          auto mark = impl_.db.prepare(sql.c_str(), Fetch::all);
+          const std::string at = utc_ms(SystemClock::now());  // bound by reference until the step
+          mark->bind(1, at).bind(2, part.from).bind(3, part.to);
+          while (mark->step()) dropped.push_back({mark->col_text(0), mark->col_text(1), "samples", mark->col_int(2), "age"});
+          mark.reset();
+          impl_.db.exec(("DROP TABLE " + part.name).c_str(), "drop a day partition of sample_chunks");
+          return true;
+        });
+      } catch (const StorageError& e) {  // e.g. the lock not granted within lock_timeout: row by row instead
+        r_.errors.push_back("partition " + part.name + " not dropped: " + e.what());
+        continue;
+      }
+      ++r_.partitions;
+      for (auto& run : dropped) {
+        r_.samples_bytes += run.bytes;
+        record(run);
+      }
+    }
+  }
+
  private:
+  // Every run of the partition's day, or with chunks in it, is dropped
+  // already or may be dropped now by age.
+  bool partition_droppable(const Historian::Impl::ChunkPartition& part, const std::map<std::string, std::string>& cutoff) {
+    const std::string sql =
+        "SELECT pump_id, created_at, samples_state, status, " AMBDIAG_RUN_NEEDED("runs.run_id") " FROM runs WHERE "
+        "samples_state <> 'dropped' AND (created_at >= ? AND created_at < ? OR run_id IN (SELECT DISTINCT run_id FROM " +
+        part.name + "))";
+    auto s = impl_.db.prepare(sql.c_str(), Fetch::all);
+    s->bind(1, part.from).bind(2, part.to);
+    while (s->step()) {
+      if (s->col_text(2) == "dropping") continue;  // already reads as dropped
+      const auto c = cutoff.find(s->col_text(0));
+      if (s->col_text(3) == "receiving" || s->col_int(4) != 0 || c == cutoff.end() || !(s->col_text(1) < c->second))
+        return false;
+    }
+    return true;
+  }
+
   // The pump's runs whose samples the policy no longer keeps, oldest first
   // (by age, then by size while the pump holds more than samples_bytes);
   // dropped unless a dry run. Returns their ids.
@@ -156,7 +229,8 @@ class Sweep {
     std::int64_t held = 0;  // the pump's samples held, receiving and needed runs included
     if (p.samples_bytes) {
       auto& t = impl_.stmt(
-          "SELECT coalesce(sum(received_frames * n_channels * 4), 0) FROM runs WHERE pump_id = ? AND samples_state = 'held'");
+          "SELECT CAST(coalesce(sum(received_frames * n_channels * 4), 0) AS bigint) FROM runs WHERE pump_id = ? AND "
+          "samples_state = 'held'");
       t.bind(1, pump_id).step();
       held = t.col_int(0);
       t.reset();
@@ -202,6 +276,10 @@ class Sweep {
     bool marked = false, done = false;
     std::int64_t bytes = 0;
     write([&] {
+      // PostgreSQL: after a reference version being written for the pump
+      // (the check below then sees it) and the run's ingest.
+      impl_.lock(Historian::Impl::LockSpace::pump, run.pump_id);
+      impl_.lock(Historian::Impl::LockSpace::run, run.run_id);
       impl_.stmt("UPDATE runs SET samples_state = 'dropping', samples_dropped_at = ?2 WHERE run_id = ?1 AND "
                  "samples_state = 'held' AND status <> 'receiving' AND NOT " AMBDIAG_RUN_NEEDED("?1"))
           .bind(1, run.run_id)
@@ -301,7 +379,7 @@ class Sweep {
 
   std::int64_t frf_bytes(const std::string& run_id) {
     auto& s = impl_.stmt(
-        "SELECT coalesce(sum(length(a.data)), 0) FROM job_artifacts a JOIN jobs j ON j.job_id = a.job_id "
+        "SELECT CAST(coalesce(sum(length(a.data)), 0) AS bigint) FROM job_artifacts a JOIN jobs j ON j.job_id = a.job_id "
         "WHERE j.run_id = ? AND j.kind = 'analysis'");
     s.bind(1, run_id).step();
     const auto n = s.col_int(0);
@@ -436,9 +514,9 @@ RetentionPolicy Historian::effective_retention_policy(const std::string& pump_id
 RetentionUsage Historian::retention_usage(const std::string& pump_id) {
   auto& s = impl_->stmt(
       "SELECT count(*) FILTER (WHERE samples_state = 'held'), "
-      "coalesce(sum(received_frames * n_channels * 4) FILTER (WHERE samples_state = 'held'), 0), "
-      "count(*) FILTER (WHERE samples_state <> 'held'), coalesce(sum(samples_dropped_bytes), 0), "
-      "count(*) FILTER (WHERE frf_dropped_at IS NOT NULL), coalesce(sum(frf_dropped_bytes), 0) "
+      "CAST(coalesce(sum(received_frames * n_channels * 4) FILTER (WHERE samples_state = 'held'), 0) AS bigint), "
+      "count(*) FILTER (WHERE samples_state <> 'held'), CAST(coalesce(sum(samples_dropped_bytes), 0) AS bigint), "
+      "count(*) FILTER (WHERE frf_dropped_at IS NOT NULL), CAST(coalesce(sum(frf_dropped_bytes), 0) AS bigint) "
       "FROM runs WHERE pump_id = ?");
   s.bind(1, pump_id).step();
   RetentionUsage u{s.col_int(0), s.col_int(1), s.col_int(2), s.col_int(3), s.col_int(4), s.col_int(5)};
@@ -464,16 +542,22 @@ SweepReport Historian::sweep_retention(const RetentionPolicy& defaults, const Sw
     return r;
   try {
     sweep.finish_interrupted();
+    std::map<std::string, RetentionPolicy> policies;  // pumps whose policy reads
     for (const auto& [pump_id, own] : sweep.pumps()) {
-      if (!sweep.go_on()) break;
-      RetentionPolicy p = defaults;
       try {
-        if (!own.empty())
-          p = retention_policy_from_json(nlohmann::json::parse(own), defaults, "retention policy of pump " + quoted(pump_id));
+        policies.emplace(pump_id, own.empty() ? defaults
+                                              : retention_policy_from_json(nlohmann::json::parse(own), defaults,
+                                                                           "retention policy of pump " + quoted(pump_id)));
       } catch (const std::exception& e) {  // nothing of this pump is dropped on a guess
         r.errors.push_back(std::string(e.what()) + "; nothing of the pump dropped");
-        continue;
       }
+    }
+    if (impl_->dialect() == Dialect::postgres && !options.dry_run) {
+      impl_->ensure_chunk_partitions(SystemClock::now());
+      sweep.drop_partitions(policies);
+    }
+    for (const auto& [pump_id, p] : policies) {
+      if (!sweep.go_on()) break;
       sweep.pump(pump_id, p);
     }
   } catch (...) {

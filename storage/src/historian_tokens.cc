@@ -89,6 +89,7 @@ std::string Historian::add_token(const std::string& name, Role role) {
   const Sha256Digest hash = sha256(secret);
   const std::string role_text = to_string(role), now = now_utc();
   Transaction tx(impl_->db, Transaction::Kind::write);
+  impl_->lock(Impl::LockSpace::token, name);  // no other add of the name between the check and the upsert
   auto& held = impl_->stmt("SELECT revoked_at IS NULL FROM tokens WHERE name = ?");
   held.bind(1, name);
   const bool exists = held.step();

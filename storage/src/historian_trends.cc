@@ -79,6 +79,7 @@ TrendPoint read_point(const Stmt& s) {
 
 bool put_run_series(Historian::Impl& impl, std::int64_t job_id, const std::string& pump_id, const std::string& run_id,
                     const std::vector<SeriesValue>& values) {
+  impl.lock(Historian::Impl::LockSpace::run, run_id);  // the newer-job check stays true until the writes
   auto& run = impl.stmt("SELECT started_at FROM runs WHERE run_id = ? AND pump_id = ?");
   run.bind(1, run_id).bind(2, pump_id);
   if (!run.step()) return false;  // a job of a run the historian does not hold: no time to put it at
@@ -273,9 +274,16 @@ std::optional<Trend> Historian::query_trend(const std::string& pump_id, const st
 std::vector<TrendPoint> Historian::run_points(const std::string& pump_id, const std::string& name,
                                               const std::vector<std::string>& run_ids) {
   const std::string ids = nlohmann::json(run_ids).dump();
-  auto& s = impl_->stmt(
-      "SELECT p.time_ns, p.value, p.sd, p.run_id FROM series s JOIN series_points p ON p.series_id = s.series_id "
-      "WHERE s.pump_id = ?1 AND s.name = ?2 AND p.run_id IN (SELECT value FROM json_each(?3)) ORDER BY p.time_ns, p.run_id");
+  // The ids as a JSON array: SQLite's json_each, PostgreSQL's json_array_elements_text.
+  auto& s = impl_->dialect() == Dialect::postgres
+                ? impl_->stmt(
+                      "SELECT p.time_ns, p.value, p.sd, p.run_id FROM series s JOIN series_points p ON p.series_id = "
+                      "s.series_id WHERE s.pump_id = ?1 AND s.name = ?2 AND p.run_id IN (SELECT value FROM "
+                      "json_array_elements_text(CAST(?3 AS json))) ORDER BY p.time_ns, p.run_id")
+                : impl_->stmt(
+                      "SELECT p.time_ns, p.value, p.sd, p.run_id FROM series s JOIN series_points p ON p.series_id = "
+                      "s.series_id WHERE s.pump_id = ?1 AND s.name = ?2 AND p.run_id IN (SELECT value FROM "
+                      "json_each(?3)) ORDER BY p.time_ns, p.run_id");
   s.bind(1, pump_id).bind(2, name).bind(3, ids);
   std::vector<TrendPoint> out;
   while (s.step()) out.push_back(read_point(s));

@@ -76,6 +76,7 @@ json to_json(const SweepReport& r, bool with_runs) {
             {"samples", {{"runs", r.samples_runs}, {"bytes", r.samples_bytes}}},
             {"frf", {{"runs", r.frf_runs}, {"bytes", r.frf_bytes}}},
             {"monitoring_rows", r.monitoring_rows},
+            {"partitions", r.partitions},
             {"transactions", r.transactions},
             {"transactions_s", r.transactions_s},
             {"longest_transaction_s", r.longest_transaction_s},

@@ -9,11 +9,6 @@ namespace ambdiag::storage::detail {
 
 namespace {
 
-struct Migration {
-  int version;
-  const char* sql;
-};
-
 // Append only: a released migration is never edited, a change is a new one.
 // STRICT tables make SQLite refuse values of the wrong type.
 constexpr Migration kMigrations[] = {
@@ -362,7 +357,31 @@ CREATE TABLE ingest_leases (
   created_at    TEXT NOT NULL
 ) STRICT;
 )sql"},
-    // v8: retention (retention.h; docs/storage.md "Retention"). What a sweep
+    // v8: several servers on one database (docs/service.md "Several
+    // servers"). A running job's lease: the server clock (ISO 8601 UTC with
+    // milliseconds, so text order is time order) until which its attempt
+    // holds it; renewed by the worker, and an expired one is queued again by
+    // any analysis process (the partial index finds them without a scan).
+    // The events table is what GET /api/v1/events streams on every server:
+    // written in the transaction of what it announces, tailed by each REST
+    // process by seq. The sequence starts at the migration's time in
+    // microseconds, so an event id of another (older) database is never
+    // mistaken for one of this database's.
+    {8, R"sql(
+ALTER TABLE jobs ADD COLUMN lease_expires_at TEXT;
+CREATE INDEX jobs_running_by_lease ON jobs(lease_expires_at) WHERE status = 'running';
+
+CREATE TABLE events (
+  seq      INTEGER PRIMARY KEY AUTOINCREMENT,
+  time     TEXT NOT NULL,
+  type     TEXT NOT NULL CHECK (type <> ''),
+  pump_id  TEXT NOT NULL DEFAULT '',
+  data     TEXT NOT NULL
+) STRICT;
+INSERT INTO sqlite_sequence (name, seq)
+VALUES ('events', CAST((julianday('now') - 2440587.5) * 86400000000.0 AS INTEGER));
+)sql"},
+    // v9: retention (retention.h; docs/storage.md "Retention"). What a sweep
     // dropped of each run stays on the run's row, so the run stays listed:
     // samples_state goes held -> dropping (marked, chunks being deleted in
     // transactions of a bounded size) -> dropped; frf_dropped_at marks the
@@ -372,7 +391,7 @@ CREATE TABLE ingest_leases (
     // version, an open alarm or a queued or running job names it: indexes
     // to ask that by run. Each pump's policy is versioned like its models;
     // the lease lets one sweep run at a time on a database.
-    {8, R"sql(
+    {9, R"sql(
 ALTER TABLE runs ADD COLUMN samples_state TEXT NOT NULL DEFAULT 'held'
   CHECK (samples_state IN ('held', 'dropping', 'dropped'));
 ALTER TABLE runs ADD COLUMN samples_dropped_at TEXT;
@@ -403,7 +422,7 @@ CREATE TABLE retention_lease (
 };
 
 int pragma_int(Db& db, const char* sql) {
-  Stmt s(db, sql);
+  SqliteStmt s(db, sql);
   return s.step() ? static_cast<int>(s.col_int(0)) : 0;
 }
 
@@ -418,7 +437,7 @@ void set_pragmas(Db& db, bool read_only) {
     // SQLite's default 4 KiB pages. 64 KiB pages made inserts of 30 KiB
     // chunks 2.3x faster; they were turned off for a REST hang that turned
     // out not to be SQLite's (docs/storage.md, page_size).
-    Stmt wal(db, "PRAGMA journal_mode = WAL");
+    SqliteStmt wal(db, "PRAGMA journal_mode = WAL");
     if (!wal.step() || wal.col_text(0) != "wal")
       throw StorageError(db.path() + ": cannot switch to WAL (needs a local file system)");
   }

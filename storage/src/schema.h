@@ -1,12 +1,19 @@
 // The historian's schema: pragmas, migrations keyed by PRAGMA user_version.
 #pragma once
 
-#include "sqlite_db.h"
+#include "sql/sqlite/sqlite_db.h"
 
 namespace ambdiag::storage::detail {
 
 // 'AMBD': marks the file as an ambdiag historian (PRAGMA application_id).
 inline constexpr int kApplicationId = 0x414D4244;
+
+// One step of a schema's history: the SQL that takes it to `version`
+// (schema.cc for SQLite, sql/postgres/pg_schema.cc for PostgreSQL).
+struct Migration {
+  int version;
+  const char* sql;
+};
 
 int latest_schema_version();
 // Sets the connection pragmas (docs/storage.md says why each).

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "ambdiag/core/io_util.h"
+#include "pg_cluster.h"
 #include "test_support.h"
 
 namespace ambdiag {
@@ -79,6 +80,29 @@ TEST(CliDb, RetentionSweepsOncePrintsWhatItDroppedAndADryRunChangesNothing) {
   EXPECT_EQ(ambdiag_cli(dir, "db retention " + db + " --retention " + (dir / "bad.json").string()), 3);
   EXPECT_NE(read_file_bytes((dir / "stderr.txt").string()).find("frf_days"), std::string::npos);
   EXPECT_EQ(ambdiag_cli(dir, "db retention " + db + " --dry-run --bogus"), 2);
+}
+
+// The same sweep on a PostgreSQL database (a schema of the test cluster),
+// as an operator runs it beside the servers.
+TEST(CliDb, RetentionSweepsAPostgreSQLDatabase) {
+  const auto location = testing::postgres_test_location();
+  if (!location) GTEST_SKIP() << "AMBDIAG_NO_POSTGRES=1: the PostgreSQL backend is not tested";
+  const fs::path dir = testing::scratch_dir();
+  const std::string db = "--db '" + *location + "'";
+  std::string out;
+  ASSERT_EQ(ambdiag_cli(dir, "db import " + testing::data_file("reference_pump/run_ref_1").string() + " " + db + " --json", &out), 0);
+  const std::string run_id = nlohmann::json::parse(out)["run_id"];
+  write_file_atomic((dir / "now.json").string(), R"({"samples_days": 0})");
+  const std::string policy = " --retention " + (dir / "now.json").string();
+  ASSERT_EQ(ambdiag_cli(dir, "db retention " + db + policy + " --json", &out), 0) << read_file_bytes((dir / "stderr.txt").string());
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["samples"]["runs"], 1);
+  EXPECT_GT(j["samples"]["bytes"].get<std::int64_t>(), 6'000'000);
+  EXPECT_EQ(j["partitions"], 0) << "today's partition is not over: the run goes row by row";
+  EXPECT_EQ(ambdiag_cli(dir, "db export '" + run_id + "' " + db + " -o " + (dir / "b").string()), 3);
+  EXPECT_NE(read_file_bytes((dir / "stderr.txt").string()).find("dropped by retention"), std::string::npos);
+  ASSERT_EQ(ambdiag_cli(dir, "db retention " + db + policy + " --json", &out), 0);
+  EXPECT_EQ(nlohmann::json::parse(out)["samples"]["runs"], 0) << "idempotent";
 }
 
 TEST(CliDb, BadInputExitsThreeAndUsageErrorsTwo) {

@@ -21,16 +21,25 @@ namespace ambdiag::testing {
 
 using namespace std::chrono_literals;
 
-// The events a stream delivers, parsed, read on their own thread.
+// One event as a client saw it.
+struct SeenEvent {
+  std::string id, type;
+  nlohmann::json data;
+};
+
+// The events a stream delivers, parsed, read on their own thread; with a
+// `last_event_id`, a reconnecting client (the Last-Event-ID header).
 class EventStream {
  public:
-  EventStream(int port, const std::string& token) : client_("127.0.0.1", port) {
-    thread_ = std::thread([this, token] {
+  EventStream(int port, const std::string& token, const std::string& last_event_id = "") : client_("127.0.0.1", port) {
+    thread_ = std::thread([this, token, last_event_id] {
       auto& c = client_;
       c.set_read_timeout(30, 0);
       std::string pending;
+      httplib::Headers headers;
+      if (!last_event_id.empty()) headers.emplace("Last-Event-ID", last_event_id);
       c.Get(
-          "/api/v1/events?access_token=" + token, httplib::Headers{},
+          "/api/v1/events?access_token=" + token, headers,
           [&](const httplib::Response& r) {
             connected_ = r.status == 200;
             return true;
@@ -40,9 +49,9 @@ class EventStream {
             for (size_t end; (end = pending.find("\n\n")) != std::string::npos; pending.erase(0, end + 2)) {
               std::smatch m;
               const std::string frame = pending.substr(0, end + 1);
-              if (std::regex_search(frame, m, std::regex("event: (.*)\ndata: (.*)\n"))) {
+              if (std::regex_search(frame, m, std::regex("id: (.*)\nevent: (.*)\ndata: (.*)\n"))) {
                 std::lock_guard l(mu_);
-                events_.push_back({m[1], nlohmann::json::parse(m[2].str())});
+                events_.push_back({m[1], m[2], nlohmann::json::parse(m[3].str())});
               }
             }
             return !stop_;
@@ -65,8 +74,8 @@ class EventStream {
     while (std::chrono::steady_clock::now() < deadline) {
       {
         std::lock_guard l(mu_);
-        for (const auto& [t, d] : events_)
-          if (t == type && d.value(key, nlohmann::json()).is_string() && d[key] == value) return d;
+        for (const auto& e : events_)
+          if (e.type == type && e.data.value(key, nlohmann::json()).is_string() && e.data[key] == value) return e.data;
       }
       std::this_thread::sleep_for(50ms);
     }
@@ -75,15 +84,19 @@ class EventStream {
   std::string seen() {
     std::lock_guard l(mu_);
     std::string s;
-    for (const auto& [t, d] : events_) s += t + " " + d.dump() + "\n";
+    for (const auto& e : events_) s += e.id + " " + e.type + " " + e.data.dump() + "\n";
     return s;
+  }
+  std::vector<SeenEvent> events() {
+    std::lock_guard l(mu_);
+    return events_;
   }
 
  private:
   httplib::Client client_;
   std::thread thread_;
   std::mutex mu_;
-  std::vector<std::pair<std::string, nlohmann::json>> events_;
+  std::vector<SeenEvent> events_;
   std::atomic<bool> stop_{false}, connected_{false};
 };
 

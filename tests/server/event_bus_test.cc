@@ -1,11 +1,13 @@
 // EventBus: increasing ids, replay after a reconnect from the ring, the
 // reload event when events are gone, and a slow subscriber that is dropped
-// without ever holding up the publisher.
+// without ever holding up the publisher; stored events (the events table's
+// seqs as ids) and a replay older than the ring from their history.
 #include "ambdiag/server/events.h"
 
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <map>
 #include <stdexcept>
 #include <thread>
 
@@ -90,6 +92,44 @@ TEST(EventBus, CloseWakesAWaitingSubscriberAndEndsIt) {
   EXPECT_EQ(bus.subscribers(), 1u);
   sub.reset();
   EXPECT_EQ(bus.subscribers(), 0u);
+}
+
+// What a tail publishes: events with the ids the table gave them, a ring
+// of the newest, older ones read from the table on a reconnect; ids ahead
+// of this bus (another server's tail was quicker) are not a reload.
+TEST(EventBus, StoredEventsKeepTheirIdsAndOlderOnesComeFromTheHistory) {
+  std::map<std::uint64_t, Event> table;  // the events table: seq -> event
+  for (std::uint64_t seq = 101; seq <= 106; ++seq) table[seq] = {seq, "x", "{\"n\":" + std::to_string(seq) + "}"};
+  EventBus bus(3);
+  bus.start_at(100);  // the sequence before the first event
+  bus.set_history([&](std::uint64_t after, std::size_t max) -> std::optional<std::vector<Event>> {
+    if (after < 100 || after > table.rbegin()->first) return std::nullopt;  // not of this table
+    std::vector<Event> out;
+    for (auto it = table.upper_bound(after); it != table.end() && out.size() < max; ++it) out.push_back(it->second);
+    return out;
+  });
+  for (std::uint64_t seq = 101; seq <= 104; ++seq) bus.publish_stored(table[seq]);
+  bus.publish_stored(table[103]);  // read twice by the tail: ignored
+  EXPECT_EQ(bus.last_id(), 104u);
+  EXPECT_THROW(bus.start_at(7), std::logic_error);
+
+  auto old = bus.subscribe(100);  // older than the ring (102..104): 101 from the history
+  auto got = old->wait(1s);
+  ASSERT_EQ(got.size(), 6u) << "the history also holds 105 and 106, not yet tailed";
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].id, 101 + i);
+  bus.publish_stored(table[105]);  // the tail catches up: not sent twice
+  bus.publish_stored(table[106]);
+  EXPECT_TRUE(old->wait(50ms).empty());
+  table[107] = {107, "x", "{}"};
+  bus.publish_stored(table[107]);
+  ASSERT_EQ(old->wait(1s).at(0).id, 107u);
+
+  auto ahead = bus.subscribe(107);  // up to date
+  EXPECT_TRUE(ahead->wait(20ms).empty());
+  auto foreign = bus.subscribe(99);  // before the table's first: gone
+  EXPECT_EQ(foreign->wait(1s).at(0).type, "reload");
+  auto future = bus.subscribe(5000);  // beyond the table's newest: another database
+  EXPECT_EQ(future->wait(1s).at(0).type, "reload");
 }
 
 }  // namespace

@@ -53,7 +53,6 @@ class RestService : public ::testing::Test {
   void start(RestOptions opt = {}) {
     AnalysisOptions aopt;
     aopt.db_path = db_path_;
-    aopt.events = &events_;
     aopt.metrics = &metrics_;
     aopt.verbose = false;
     analysis_.emplace(aopt);  // not started: writes are stored and queued, nothing runs

@@ -12,39 +12,18 @@
 namespace ambdiag::storage {
 namespace {
 
-std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
+using ambdiag::testing::alarm_event;
+using ambdiag::testing::open_alarm;
 
-AlarmRecord open_alarm(const std::string& pump, const std::string& rule) {
-  AlarmRecord a;
-  a.pump_id = pump;
-  a.rule = rule;
-  a.severity = "high";
-  a.state = "unack_active";
-  a.active = true;
-  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
-  a.run_id = pump + "/r1";
-  a.message = "raised";
-  a.fault = "balance_piston_wear";
-  a.value = 1.7;
-  return a;
-}
-
-AlarmEvent event(const std::string& kind, const std::string& from, const std::string& to, const std::string& by = "server") {
-  AlarmEvent e;
-  e.kind = kind;
-  e.time = "2026-11-26T10:00:00.000Z";
-  e.from = from;
-  e.to = to;
-  e.by = by;
-  return e;
-}
+class HistorianAlarmsTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianAlarmsTest);
 
 // Raises `rule` on `pump`: the new alarm and its journal entry.
 std::int64_t raise(Historian& h, const std::string& pump, const std::string& rule) {
   AlarmChanges c;
   c.pump_id = pump;
   c.alarms.push_back(open_alarm(pump, rule));
-  c.events.emplace_back(0, event("raise", "normal", "unack_active"));
+  c.events.emplace_back(0, alarm_event("raise", "normal", "unack_active"));
   c.memories.emplace_back(rule, R"({"window":"1","clear_runs":0})");
   h.apply_alarm_changes(c);
   EXPECT_GT(c.alarms[0].alarm_id, 0);
@@ -53,8 +32,8 @@ std::int64_t raise(Historian& h, const std::string& pump, const std::string& rul
   return c.alarms[0].alarm_id;
 }
 
-TEST(HistorianAlarms, OneOpenAlarmPerPumpAndRule) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, OneOpenAlarmPerPumpAndRule) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto id = raise(h, "P-1", "detection");
   raise(h, "P-2", "detection");       // another pump
@@ -72,7 +51,7 @@ TEST(HistorianAlarms, OneOpenAlarmPerPumpAndRule) {
   AlarmChanges close;
   close.pump_id = "P-1";
   close.alarms.push_back(a);
-  close.events.emplace_back(0, event("clear", "ack_active", "normal"));
+  close.events.emplace_back(0, alarm_event("clear", "ack_active", "normal"));
   h.apply_alarm_changes(close);
   const auto second = raise(h, "P-1", "detection");
   EXPECT_GT(second, id);
@@ -93,17 +72,17 @@ TEST(HistorianAlarms, OneOpenAlarmPerPumpAndRule) {
   EXPECT_EQ(h.list_alarms(f).size(), 3u);
 }
 
-TEST(HistorianAlarms, JournalIsAppendOnlyWithAGrowingSeq) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, JournalIsAppendOnlyWithAGrowingSeq) {
+  const auto path = location();
   {
     auto h = Historian::open(path);
     raise(h, "P-1", "detection");
     raise(h, "P-2", "detection");
     raise(h, "P-3", "detection");
   }
-  EXPECT_NE(raw_exec_error(path, "UPDATE alarm_events SET by = 'mallory'"), "");
-  EXPECT_NE(raw_exec_error(path, "DELETE FROM alarm_events"), "");
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM alarm_events"), 3);
+  EXPECT_NE(raw_error(path, "UPDATE alarm_events SET by = 'mallory'"), "");
+  EXPECT_NE(raw_error(path, "DELETE FROM alarm_events"), "");
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM alarm_events"), 3);
   auto h = Historian::open(path);  // kept across a reopen
   const auto all = h.alarm_events(0, 100);
   ASSERT_EQ(all.size(), 3u);
@@ -123,8 +102,8 @@ TEST(HistorianAlarms, JournalIsAppendOnlyWithAGrowingSeq) {
   EXPECT_GT(h.alarm_history(next).front().seq, all[2].seq);
 }
 
-TEST(HistorianAlarms, RulesVersionsMemoriesAndCursorPersist) {
-  const auto path = db_path();
+TEST_P(HistorianAlarmsTest, RulesVersionsMemoriesAndCursorPersist) {
+  const auto path = location();
   {
     auto h = Historian::open(path);
     EXPECT_FALSE(h.find_alarm_rules("P-1"));
@@ -153,8 +132,8 @@ TEST(HistorianAlarms, RulesVersionsMemoriesAndCursorPersist) {
   EXPECT_DOUBLE_EQ(a.value.value_or(0), 1.7);
 }
 
-TEST(HistorianAlarms, ExpiredShelvesAreFoundByTime) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianAlarmsTest, ExpiredShelvesAreFoundByTime) {
+  auto h = Historian::open(location());
   const auto id = raise(h, "P-1", "detection");
   auto a = *h.find_alarm(id);
   a.state = "shelved";
@@ -162,7 +141,7 @@ TEST(HistorianAlarms, ExpiredShelvesAreFoundByTime) {
   AlarmChanges c;
   c.pump_id = "P-1";
   c.alarms.push_back(a);
-  c.events.emplace_back(0, event("shelve", "unack_active", "shelved", "ops"));
+  c.events.emplace_back(0, alarm_event("shelve", "unack_active", "shelved", "ops"));
   h.apply_alarm_changes(c);
   EXPECT_TRUE(h.expired_shelves("2026-11-26T10:29:59.999Z").empty());
   ASSERT_EQ(h.expired_shelves("2026-11-26T10:30:00.000Z").size(), 1u);

@@ -19,12 +19,17 @@ using ambdiag::testing::samples_bytes;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
+class HistorianBatchTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianBatchTest);
+class HistorianDigestTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianDigestTest);
+
 RunHeader header(const std::string& run_id, int n_channels) {
   return run_header_from_json(run_json_text(run_id, n_channels));
 }
 
-TEST(HistorianBatch, ManyCallsCommitTogetherAndARefusedCallUndoesOnlyItself) {
-  const auto path = db_path();
+TEST_P(HistorianBatchTest, ManyCallsCommitTogetherAndARefusedCallUndoesOnlyItself) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto a = samples_bytes(400, 2, 1), b = samples_bytes(300, 3, 2);
   const auto ca = cut_chunks(a, 2, 100), cb = cut_chunks(b, 3, 100);
@@ -50,8 +55,8 @@ TEST(HistorianBatch, ManyCallsCommitTogetherAndARefusedCallUndoesOnlyItself) {
   EXPECT_EQ(r.read_samples("P-7/b"), as_string(std::span(b).subspan(0, 2 * 100 * 3 * 4)));
 }
 
-TEST(HistorianBatch, DestroyedWithoutCommitLeavesNoTrace) {
-  const auto path = db_path();
+TEST_P(HistorianBatchTest, DestroyedWithoutCommitLeavesNoTrace) {
+  const auto path = location();
   auto h = Historian::open(path);
   h.begin_run(header("P-7/c", 2));
   const auto a = samples_bytes(200, 2, 3);
@@ -66,8 +71,8 @@ TEST(HistorianBatch, DestroyedWithoutCommitLeavesNoTrace) {
   EXPECT_EQ(h.end_run("P-7/c", 200, checksum_of(a)).status, RunStatus::complete);
 }
 
-TEST(HistorianDigest, ADigestOfEveryChunkSkipsTheReadAndGivesTheSameVerdicts) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianDigestTest, ADigestOfEveryChunkSkipsTheReadAndGivesTheSameVerdicts) {
+  auto h = Historian::open(location());
   const auto a = samples_bytes(1000, 2, 4);
   h.begin_run(header("P-7/d", 2));
   h.put_chunks("P-7/d", cut_chunks(a, 2, 100));
@@ -83,8 +88,8 @@ TEST(HistorianDigest, ADigestOfEveryChunkSkipsTheReadAndGivesTheSameVerdicts) {
   EXPECT_EQ(end.status, RunStatus::complete) << end.reason;
 }
 
-TEST(HistorianDigest, ADigestNotCoveringExactlyTheChunksHeldFallsBackToReading) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianDigestTest, ADigestNotCoveringExactlyTheChunksHeldFallsBackToReading) {
+  auto h = Historian::open(location());
   const auto a = samples_bytes(1000, 2, 5);
   h.begin_run(header("P-7/e", 2));
   const auto chunks = cut_chunks(a, 2, 100);

@@ -1,5 +1,6 @@
-// The historian on real SQLite files: schema, idempotency, run-end checks,
-// bad input refused.
+// The historian on both backends (a real SQLite file, a real PostgreSQL
+// schema): idempotency, run-end checks, bad input refused; and what is
+// SQLite's own: the file's schema, a file that is not a database.
 #include "ambdiag/storage/historian.h"
 
 #include <gtest/gtest.h>
@@ -24,6 +25,9 @@ using ambdiag::testing::run_json_text;
 using ambdiag::testing::samples_bytes;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
+
+class HistorianTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianTest);
 
 struct TestRun {
   RunHeader header;
@@ -51,8 +55,8 @@ TEST(Historian, MigratesAnEmptyFileToTheLatestSchemaAndReopens) {
   EXPECT_TRUE(r.list_pumps().empty());
 }
 
-TEST(Historian, DataSurvivesReopening) {
-  const auto path = db_path();
+TEST_P(HistorianTest, DataSurvivesReopening) {
+  const auto path = location();
   const TestRun run = make_run("P-7/a", 1000, 3, 1);
   {
     auto h = Historian::open(path);
@@ -70,8 +74,8 @@ TEST(Historian, DataSurvivesReopening) {
   EXPECT_EQ(h.read_samples("P-7/a"), as_string(run.bytes));
 }
 
-TEST(Historian, BeginRunIsIdempotentAndRefusesAnotherHeaderUnderTheSameId) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, BeginRunIsIdempotentAndRefusesAnotherHeaderUnderTheSameId) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/a", 10, 2, 1);
   h.begin_run(run.header);
   h.begin_run(run.header);
@@ -83,8 +87,8 @@ TEST(Historian, BeginRunIsIdempotentAndRefusesAnotherHeaderUnderTheSameId) {
   EXPECT_EQ(h.find_run("P-7/a")->speed_rpm, 3000.0);
 }
 
-TEST(Historian, StoresChunksArrivingOutOfOrderAndReadsThemBackInOrder) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, StoresChunksArrivingOutOfOrderAndReadsThemBackInOrder) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/b", 5000, 4, 2);
   h.begin_run(run.header);
   auto chunks = cut_chunks(run.bytes, 4, 97);  // last chunk shorter
@@ -100,8 +104,8 @@ TEST(Historian, StoresChunksArrivingOutOfOrderAndReadsThemBackInOrder) {
   EXPECT_EQ(h.read_samples("P-7/b"), as_string(run.bytes));
 }
 
-TEST(Historian, DuplicateChunksAreCountedAndStoredOnce) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, DuplicateChunksAreCountedAndStoredOnce) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/c", 600, 3, 3);
   h.begin_run(run.header);
   const auto chunks = cut_chunks(run.bytes, 3, 100);
@@ -117,8 +121,8 @@ TEST(Historian, DuplicateChunksAreCountedAndStoredOnce) {
   EXPECT_EQ(h.read_samples("P-7/c"), as_string(run.bytes));
 }
 
-TEST(Historian, DuplicateSeqWithOtherBytesIsRefusedAndTheBatchLeavesNoTrace) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, DuplicateSeqWithOtherBytesIsRefusedAndTheBatchLeavesNoTrace) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/d", 300, 2, 4);
   h.begin_run(run.header);
   auto chunks = cut_chunks(run.bytes, 2, 100);
@@ -132,8 +136,8 @@ TEST(Historian, DuplicateSeqWithOtherBytesIsRefusedAndTheBatchLeavesNoTrace) {
   EXPECT_EQ(h.read_samples("P-7/d"), as_string(chunks[0].bytes));
 }
 
-TEST(Historian, RefusesChunksOfWrongSizeUnknownRunsAndNegativeFields) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, RefusesChunksOfWrongSizeUnknownRunsAndNegativeFields) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/e", 100, 3, 5);
   h.begin_run(run.header);
   const auto chunks = cut_chunks(run.bytes, 3, 50);
@@ -157,8 +161,8 @@ TEST(Historian, RefusesChunksOfWrongSizeUnknownRunsAndNegativeFields) {
   }
 }
 
-TEST(Historian, ChecksumMismatchMarksTheRunIncompleteWithTheReason) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, ChecksumMismatchMarksTheRunIncompleteWithTheReason) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/f", 400, 2, 6);
   h.begin_run(run.header);
   h.put_chunks("P-7/f", cut_chunks(run.bytes, 2, 64));
@@ -173,8 +177,8 @@ TEST(Historian, ChecksumMismatchMarksTheRunIncompleteWithTheReason) {
   EXPECT_EQ(info->checksum_kind, ChecksumKind::fnv1a64);
 }
 
-TEST(Historian, TheRunEndsChecksumKindIsKept) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, TheRunEndsChecksumKindIsKept) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/k", 400, 2, 6);
   h.begin_run(run.header);
   h.put_chunks("P-7/k", cut_chunks(run.bytes, 2, 64));
@@ -184,8 +188,8 @@ TEST(Historian, TheRunEndsChecksumKindIsKept) {
   EXPECT_EQ(h.find_run("P-7/k")->expected_checksum, 12345u);
 }
 
-TEST(Historian, MissingChunkMarksIncompleteAndALateChunkCompletesTheRun) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, MissingChunkMarksIncompleteAndALateChunkCompletesTheRun) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/g", 1000, 2, 7);
   h.begin_run(run.header);
   auto chunks = cut_chunks(run.bytes, 2, 100);
@@ -202,8 +206,8 @@ TEST(Historian, MissingChunkMarksIncompleteAndALateChunkCompletesTheRun) {
   EXPECT_EQ(h.read_samples("P-7/g"), as_string(run.bytes));
 }
 
-TEST(Historian, MissingTailAndNonContiguousFramesAreReported) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, MissingTailAndNonContiguousFramesAreReported) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/h", 1000, 2, 8);
   h.begin_run(run.header);
   auto chunks = cut_chunks(run.bytes, 2, 100);
@@ -222,8 +226,8 @@ TEST(Historian, MissingTailAndNonContiguousFramesAreReported) {
   EXPECT_NE(end.reason.find("starts at frame 101, expected 100"), std::string::npos) << end.reason;
 }
 
-TEST(Historian, CompleteRunsAcceptDuplicatesButNoNewChunksOrOtherEnds) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, CompleteRunsAcceptDuplicatesButNoNewChunksOrOtherEnds) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/j", 300, 2, 10);
   h.begin_run(run.header);
   const auto chunks = cut_chunks(run.bytes, 2, 100);
@@ -239,8 +243,8 @@ TEST(Historian, CompleteRunsAcceptDuplicatesButNoNewChunksOrOtherEnds) {
   EXPECT_EQ(h.find_run("P-7/j")->status, RunStatus::complete);
 }
 
-TEST(Historian, MarkIncompleteRecordsTheReason) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, MarkIncompleteRecordsTheReason) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/k", 100, 2, 12);
   h.begin_run(run.header);
   EXPECT_EQ(h.find_run("P-7/k")->status, RunStatus::receiving);
@@ -252,8 +256,8 @@ TEST(Historian, MarkIncompleteRecordsTheReason) {
   EXPECT_THROW(h.mark_incomplete("P-7/zz", "x"), InputError);
 }
 
-TEST(Historian, ListsPumpsWithRunCountsAndRunsByStartTime) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, ListsPumpsWithRunCountsAndRunsByStartTime) {
+  auto h = Historian::open(location());
   for (const auto& [pump, run_id, started] :
        {std::tuple{"P-1", "P-1/r2", "2026-01-02T00:00:00Z"}, {"P-1", "P-1/r1", "2026-01-01T00:00:00Z"},
         {"P-2", "P-2/r1", "2026-01-03T00:00:00Z"}}) {
@@ -276,8 +280,8 @@ TEST(Historian, ListsPumpsWithRunCountsAndRunsByStartTime) {
   EXPECT_EQ(h.find_pump("P-2")->last_started_at, "2026-01-03T00:00:00Z");
 }
 
-TEST(Historian, AReaderSeesWhatTheWriterCommittedAndCannotWrite) {
-  const auto path = db_path();
+TEST_P(HistorianTest, AReaderSeesWhatTheWriterCommittedAndCannotWrite) {
+  const auto path = location();
   auto w = Historian::open(path);
   auto r = Historian::open(path, Historian::Mode::read);
   const TestRun run = make_run("P-7/l", 200, 2, 13);
@@ -294,8 +298,8 @@ TEST(Historian, AReaderSeesWhatTheWriterCommittedAndCannotWrite) {
   EXPECT_THROW(r.begin_run(run.header), std::logic_error);
 }
 
-TEST(Historian, StreamSamplesStopsWhenTheSinkSaysSo) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, StreamSamplesStopsWhenTheSinkSaysSo) {
+  auto h = Historian::open(location());
   const TestRun run = make_run("P-7/m", 1000, 2, 14);
   h.begin_run(run.header);
   h.put_chunks("P-7/m", cut_chunks(run.bytes, 2, 100));
@@ -366,8 +370,8 @@ TEST(Historian, AReaderRefusesAMissingFile) {
   EXPECT_THROW(Historian::open(db_path() + ".missing", Historian::Mode::read), InputError);
 }
 
-TEST(Historian, RefusesAHeaderWhoseFieldsDisagreeWithItsJson) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTest, RefusesAHeaderWhoseFieldsDisagreeWithItsJson) {
+  auto h = Historian::open(location());
   auto header = run_header_from_json(run_json_text("P-7/o", 2));
   header.run_id = "P-7/other";
   EXPECT_THROW(h.begin_run(header), InputError);

@@ -18,8 +18,11 @@ namespace {
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
-TEST(IngestLease, AGroupIsRegisteredHeldByNobodyAndTakenOnceFromWhatWasSeen) {
-  auto h = Historian::open(db_path());
+class IngestLeaseTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(IngestLeaseTest);
+
+TEST_P(IngestLeaseTest, AGroupIsRegisteredHeldByNobodyAndTakenOnceFromWhatWasSeen) {
+  auto h = Historian::open(location());
   const auto joined = h.join_ingest_group("site-a", "site-a,site-a/*", 3000);
   EXPECT_EQ(joined.group, "site-a");
   EXPECT_EQ(joined.partitions, "site-a,site-a/*");
@@ -48,8 +51,8 @@ TEST(IngestLease, AGroupIsRegisteredHeldByNobodyAndTakenOnceFromWhatWasSeen) {
   EXPECT_FALSE(h.find_ingest_lease("site-b"));
 }
 
-TEST(IngestLease, ATakenOverHolderCannotRenewNorPassTheCheckInItsBatch) {
-  const auto path = db_path();
+TEST_P(IngestLeaseTest, ATakenOverHolderCannotRenewNorPassTheCheckInItsBatch) {
+  const auto path = location();
   auto first = Historian::open(path);
   auto second = Historian::open(path);
   const auto joined = first.join_ingest_group("g", "*", 3000);
@@ -76,8 +79,8 @@ TEST(IngestLease, ATakenOverHolderCannotRenewNorPassTheCheckInItsBatch) {
   EXPECT_EQ(second.find_ingest_lease("g")->holder, "second");
 }
 
-TEST(IngestLease, AReleasedGroupIsTakenAtOnceAndItsOldHolderHoldsNothing) {
-  auto h = Historian::open(db_path());
+TEST_P(IngestLeaseTest, AReleasedGroupIsTakenAtOnceAndItsOldHolderHoldsNothing) {
+  auto h = Historian::open(location());
   const auto mine = h.take_ingest_lease(h.join_ingest_group("g", "*", 3000), "a", "*", 3000);
   ASSERT_TRUE(mine);
   EXPECT_FALSE(h.release_ingest_lease("g", "a", mine->epoch + 1));
@@ -91,8 +94,8 @@ TEST(IngestLease, AReleasedGroupIsTakenAtOnceAndItsOldHolderHoldsNothing) {
   EXPECT_EQ(next->epoch, mine->epoch + 1);
 }
 
-TEST(IngestLease, PartitionsOfAHeldGroupAreNotChangedByAnotherServer) {
-  auto h = Historian::open(db_path());
+TEST_P(IngestLeaseTest, PartitionsOfAHeldGroupAreNotChangedByAnotherServer) {
+  auto h = Historian::open(location());
   h.join_ingest_group("g", "site-a", 3000);
   // Nobody holds it: a new configuration takes over the row.
   EXPECT_EQ(h.join_ingest_group("g", "site-a,site-a/*", 3000).partitions, "site-a,site-a/*");
@@ -112,8 +115,8 @@ TEST(IngestLease, PartitionsOfAHeldGroupAreNotChangedByAnotherServer) {
   EXPECT_FALSE(h.take_ingest_lease(*h.find_ingest_lease("g"), "b", "site-b", 3000));
 }
 
-TEST(IngestLease, BadArgumentsAreRefusedNamingWhatIsWrong) {
-  auto h = Historian::open(db_path());
+TEST_P(IngestLeaseTest, BadArgumentsAreRefusedNamingWhatIsWrong) {
+  auto h = Historian::open(location());
   EXPECT_THROW(h.join_ingest_group("", "*", 3000), InputError);
   EXPECT_THROW(h.join_ingest_group("g", "", 3000), InputError);
   EXPECT_THROW(h.join_ingest_group("g", "*", 0), InputError);
@@ -141,8 +144,8 @@ TEST(IngestLease, AVersion6FileIsMigratedAndKeepsItsRuns) {
 
 // Many standbys that saw the same expired lease race to take it, each on
 // its own connection: exactly one wins.
-TEST(IngestLease, OfStandbysRacingForTheSameLeaseExactlyOneWins) {
-  const auto path = db_path();
+TEST_P(IngestLeaseTest, OfStandbysRacingForTheSameLeaseExactlyOneWins) {
+  const auto path = location();
   const auto seen = Historian::open(path).join_ingest_group("g", "*", 3000);
   constexpr int kStandbys = 6;
   std::atomic<int> winners{0};

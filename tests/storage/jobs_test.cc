@@ -21,6 +21,9 @@ namespace {
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
+class HistorianJobsTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianJobsTest);
+
 JobKey analysis(const std::string& run_id, int model_version = 1, int reference_version = 0,
                 const std::string& pump_id = "P-1") {
   return {"analysis", pump_id, run_id, model_version, reference_version};
@@ -45,8 +48,8 @@ JobFilter filter(std::optional<std::string> pump_id, std::optional<std::string> 
   return f;
 }
 
-TEST(HistorianJobs, EnqueueIsIdempotentOnTheKey) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, EnqueueIsIdempotentOnTheKey) {
+  auto h = Historian::open(location());
   const auto [id, created] = h.enqueue_job(analysis("r1"), R"({"speed_rpm": 3000})");
   EXPECT_TRUE(created);
   const auto again = h.enqueue_job(analysis("r1"), R"({"other": true})");
@@ -77,16 +80,16 @@ TEST(HistorianJobs, EnqueueIsIdempotentOnTheKey) {
   EXPECT_EQ(h.count_jobs(JobStatus::queued), 6);
 }
 
-TEST(HistorianJobs, EnqueueRefusesAnUnknownDependencyAndAnEmptyKey) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, EnqueueRefusesAnUnknownDependencyAndAnEmptyKey) {
+  auto h = Historian::open(location());
   EXPECT_THROW(h.enqueue_job(analysis("r1"), "{}", 42), InputError);
   EXPECT_THROW(h.enqueue_job({"", "P-1", "r1", 1, 0}), InputError);
   EXPECT_THROW(h.enqueue_job({"analysis", "", "r1", 1, 0}), InputError);
   EXPECT_EQ(h.list_jobs({}).size(), 0u);
 }
 
-TEST(HistorianJobs, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
+  auto h = Historian::open(location());
   const auto a = enqueue(h, analysis("r1"));
   const auto e = enqueue(h, {"explain", "P-1", "r1", 1, 0});
   const auto b = enqueue(h, analysis("r2"));
@@ -114,8 +117,8 @@ TEST(HistorianJobs, ClaimTakesTheOldestQueuedJobOfTheWantedKinds) {
   EXPECT_EQ(h.count_jobs(JobStatus::running), 3);
 }
 
-TEST(HistorianJobs, AJobWaitsForItsDependencyAndOthersGoAhead) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, AJobWaitsForItsDependencyAndOthersGoAhead) {
+  auto h = Historian::open(location());
   const auto ref = enqueue(h, {"reference", "P-1", "", 1, 1});
   const auto dependent = enqueue(h, analysis("r1", 1, 1), ref);
   const auto free = enqueue(h, analysis("r2", 1, 1));
@@ -136,8 +139,8 @@ TEST(HistorianJobs, AJobWaitsForItsDependencyAndOthersGoAhead) {
   EXPECT_EQ(c3->job_id, dependent);
 }
 
-TEST(HistorianJobs, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
+  auto h = Historian::open(location());
   const auto a = enqueue(h, {"reference", "P-1", "", 1, 1});
   const auto b = enqueue(h, analysis("r1", 1, 1), a);
   const auto c = enqueue(h, {"explain", "P-1", "r1", 1, 1}, b);  // a chain
@@ -163,8 +166,8 @@ TEST(HistorianJobs, AJobWhoseDependencyFailedOrWasCancelledFailsWithTheReason) {
   EXPECT_EQ(h.count_jobs(JobStatus::failed), 4);
 }
 
-TEST(HistorianJobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, analysis("r1"));
   const auto first = h.claim_job("server-1");
   ASSERT_TRUE(first);
@@ -214,8 +217,8 @@ TEST(HistorianJobs, OnlyTheAttemptThatHoldsTheJobStoresAResultAndOnlyOnce) {
 
 // A job running at every one of three server deaths is likely what kills
 // the server: the third restart fails it, naming why, and the others go on.
-TEST(HistorianJobs, AJobRunningAtThreeServerDeathsFailsInsteadOfAFourthClaim) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, AJobRunningAtThreeServerDeathsFailsInsteadOfAFourthClaim) {
+  auto h = Historian::open(location());
   const auto poison = enqueue(h, analysis("poison"));
   for (int death = 1; death <= 3; ++death) {
     const auto claimed = h.claim_job("server-" + std::to_string(death));
@@ -233,8 +236,8 @@ TEST(HistorianJobs, AJobRunningAtThreeServerDeathsFailsInsteadOfAFourthClaim) {
   EXPECT_EQ(h.claim_job("server-4")->job_id, next);
 }
 
-TEST(HistorianJobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, analysis("r1"));
   const auto c = h.claim_job("w");
   EXPECT_TRUE(h.set_job_progress(id, c->attempts, 1.5));
@@ -244,8 +247,8 @@ TEST(HistorianJobs, ProgressIsClampedToZeroToOneAndNaNIsRefused) {
   EXPECT_THROW(h.set_job_progress(id, c->attempts, std::nan("")), InputError);
 }
 
-TEST(HistorianJobs, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
+  auto h = Historian::open(location());
   const auto id = enqueue(h, analysis("r1"));
   const auto c = h.claim_job("w");
   ASSERT_TRUE(h.fail_job(id, c->attempts, "fit did not converge"));
@@ -256,8 +259,8 @@ TEST(HistorianJobs, AFailedJobKeepsItsErrorAndIsNotClaimedAgain) {
   EXPECT_FALSE(h.claim_job("w"));  // failed is final
 }
 
-TEST(HistorianJobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
-  const auto path = db_path();
+TEST_P(HistorianJobsTest, TheFilesAreStoredWithTheResultOrNotAtAll) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto id = enqueue(h, analysis("r1"));
   auto c = h.claim_job("w");
@@ -273,15 +276,19 @@ TEST(HistorianJobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
   EXPECT_EQ(h.find_job(id)->status, JobStatus::running);
 
   // The database refuses the third file: the result and the first two go too.
-  raw_exec(path,
-           "CREATE TRIGGER refuse_raw BEFORE INSERT ON job_artifacts WHEN NEW.name = 'raw.bin' "
-           "BEGIN SELECT RAISE(ABORT, 'refused by the test'); END;");
+  EXPECT_EQ(raw_error(path, postgres() ? "CREATE FUNCTION refuse_raw() RETURNS trigger LANGUAGE plpgsql AS $$ BEGIN "
+                                         "IF NEW.name = 'raw.bin' THEN RAISE EXCEPTION 'refused by the test'; END IF; "
+                                         "RETURN NEW; END $$; CREATE TRIGGER refuse_raw BEFORE INSERT ON job_artifacts "
+                                         "FOR EACH ROW EXECUTE FUNCTION refuse_raw()"
+                                       : "CREATE TRIGGER refuse_raw BEFORE INSERT ON job_artifacts WHEN NEW.name = "
+                                         "'raw.bin' BEGIN SELECT RAISE(ABORT, 'refused by the test'); END;"),
+            "");
   auto h2 = Historian::open(path);  // a new connection sees the trigger at once
   EXPECT_THROW(h2.finish_job(id, c->attempts, R"({"ok": true})", files), StorageError);
   EXPECT_EQ(h2.find_job(id)->status, JobStatus::running);
   EXPECT_FALSE(h2.find_job(id)->result_json);
   EXPECT_TRUE(h2.list_artifacts(id).empty());
-  raw_exec(path, "DROP TRIGGER refuse_raw");
+  EXPECT_EQ(raw_error(path, postgres() ? "DROP TRIGGER refuse_raw ON job_artifacts" : "DROP TRIGGER refuse_raw"), "");
 
   EXPECT_TRUE(h.finish_job(id, c->attempts, R"({"ok": true})", files));
   EXPECT_EQ(h.list_artifacts(id), (std::vector<std::string>{"bode.svg", "empty.txt", "frf.csv", "raw.bin"}));
@@ -295,8 +302,8 @@ TEST(HistorianJobs, TheFilesAreStoredWithTheResultOrNotAtAll) {
   EXPECT_FALSE(h.find_artifact(id + 1, "frf.csv"));
 }
 
-TEST(HistorianJobs, RequeueTakesBackEveryRunningJobAndOnlyThose) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, RequeueTakesBackEveryRunningJobAndOnlyThose) {
+  auto h = Historian::open(location());
   for (int i = 0; i < 5; ++i) enqueue(h, analysis("r" + std::to_string(i)));
   const auto c1 = h.claim_job("w"), c2 = h.claim_job("w"), c3 = h.claim_job("w");
   ASSERT_TRUE(h.finish_job(c3->job_id, c3->attempts, "{}"));
@@ -310,8 +317,8 @@ TEST(HistorianJobs, RequeueTakesBackEveryRunningJobAndOnlyThose) {
   EXPECT_EQ(h.claim_job("w")->job_id, c2->job_id);
 }
 
-TEST(HistorianJobs, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
+  auto h = Historian::open(location());
   const auto running = enqueue(h, analysis("r0", 1, 0));
   ASSERT_EQ(h.claim_job("w")->job_id, running);
   const auto old_model = enqueue(h, analysis("r1", 1, 1));
@@ -333,8 +340,8 @@ TEST(HistorianJobs, ANewVersionCancelsTheQueuedJobsOfOlderVersionsOnly) {
   EXPECT_EQ(h.cancel_superseded_jobs("P-1", "analysis", 2, 1), 0);
 }
 
-TEST(HistorianJobs, CancelTakesAQueuedOrRunningJobAndNothingElse) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, CancelTakesAQueuedOrRunningJobAndNothingElse) {
+  auto h = Historian::open(location());
   const auto queued = enqueue(h, analysis("r1"));
   const auto running = enqueue(h, analysis("r2"));
   const auto done = enqueue(h, analysis("r3"));
@@ -359,8 +366,8 @@ TEST(HistorianJobs, CancelTakesAQueuedOrRunningJobAndNothingElse) {
   EXPECT_FALSE(h.claim_job("w"));
 }
 
-TEST(HistorianJobs, ListsNewestFirstByPumpRunKindAndStatus) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianJobsTest, ListsNewestFirstByPumpRunKindAndStatus) {
+  auto h = Historian::open(location());
   const auto a = enqueue(h, analysis("r1"));
   const auto b = enqueue(h, {"explain", "P-1", "r1", 1, 0});
   const auto c = enqueue(h, analysis("r2"));
@@ -387,8 +394,8 @@ TEST(HistorianJobs, ListsNewestFirstByPumpRunKindAndStatus) {
   EXPECT_EQ(listed[0].key.model_version, 1);
 }
 
-TEST(HistorianJobs, JobCallsInsideAWriteBatchJoinItAndRollBackWithIt) {
-  const auto path = db_path();
+TEST_P(HistorianJobsTest, JobCallsInsideAWriteBatchJoinItAndRollBackWithIt) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto kept = enqueue(h, analysis("r0"));
   {
@@ -438,8 +445,8 @@ TEST(HistorianJobs, AClaimFromAnotherConnectionWaitsForAnOpenBatchAndThenSucceed
   EXPECT_TRUE(ingest.find_run("P-1/r1"));
 }
 
-TEST(HistorianJobs, TwoConnectionsClaimingAtOnceNeverTakeTheSameJob) {
-  const auto path = db_path();
+TEST_P(HistorianJobsTest, TwoConnectionsClaimingAtOnceNeverTakeTheSameJob) {
+  const auto path = location();
   constexpr int kJobs = 200;
   {
     auto h = Historian::open(path);

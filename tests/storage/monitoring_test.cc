@@ -9,6 +9,7 @@
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
+#include "historian_fixture.h"
 #include "test_support.h"
 
 namespace ambdiag::storage {
@@ -44,10 +45,11 @@ bool same(const MonitoringSnapshot& a, const MonitoringSnapshot& b) {
          a.orbit_center_x_m == b.orbit_center_x_m && a.orbit_center_y_m == b.orbit_center_y_m;
 }
 
-std::string db_path() { return (ambdiag::testing::scratch_dir() / "m.db").string(); }
+class MonitoringTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(MonitoringTest);
 
-TEST(Monitoring, SnapshotsRoundTripInTimeOrderAndRepeatsAreDuplicates) {
-  auto h = Historian::open(db_path());
+TEST_P(MonitoringTest, SnapshotsRoundTripInTimeOrderAndRepeatsAreDuplicates) {
+  auto h = Historian::open(location());
   std::vector<MonitoringSnapshot> in;
   for (int k = 4; k >= 0; --k) in.push_back(snapshot("P-9", kT0 + k * 1'000'000'000LL, 1.0 + 0.1 * k));
   const auto r = h.put_monitoring(in);
@@ -66,8 +68,8 @@ TEST(Monitoring, SnapshotsRoundTripInTimeOrderAndRepeatsAreDuplicates) {
   EXPECT_THROW(h.list_monitoring("P-9", 0, 0), InputError);
 }
 
-TEST(Monitoring, InvalidSnapshotsAreRefusedNamingTheFieldAndNothingIsStored) {
-  auto h = Historian::open(db_path());
+TEST_P(MonitoringTest, InvalidSnapshotsAreRefusedNamingTheFieldAndNothingIsStored) {
+  auto h = Historian::open(location());
   const auto good = snapshot("P-9", kT0, 1.0);
   EXPECT_NO_THROW(validate(good));
   struct Case {

@@ -20,6 +20,11 @@ using ambdiag::testing::samples_bytes;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
+class HistorianModelsTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianModelsTest);
+class HistorianReferencesTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianReferencesTest);
+
 // Stores a run from its run.json text: complete (all chunks and the right
 // end), incomplete (a wrong checksum) or still receiving (no end).
 void store_run(Historian& h, const std::string& run_json, RunStatus status) {
@@ -33,8 +38,8 @@ void store_run(Historian& h, const std::string& run_json, RunStatus status) {
   ASSERT_EQ(end.status, status) << end.reason;
 }
 
-TEST(HistorianModels, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianModelsTest, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
+  auto h = Historian::open(location());
   EXPECT_FALSE(h.find_model("P-1"));
   EXPECT_TRUE(h.list_models("P-1").empty());
   EXPECT_EQ(h.put_model("P-1", R"({"a": 1})", "alice", "first"), 1);
@@ -68,8 +73,8 @@ TEST(HistorianModels, EachPutIsANewVersionOfItsPumpAndEveryVersionIsKept) {
   EXPECT_EQ(pump->n_runs, 0);
 }
 
-TEST(HistorianModels, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused) {
-  const auto path = db_path();
+TEST_P(HistorianModelsTest, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused) {
+  const auto path = location();
   auto h = Historian::open(path);
   h.put_model("P-1", "{}", "");
   auto r = Historian::open(path, Historian::Mode::read);
@@ -80,19 +85,8 @@ TEST(HistorianModels, AReaderSeesTheVersionsAndAnEmptyPumpOrPlantIsRefused) {
   EXPECT_EQ(h.list_models("P-1").size(), 1u);
 }
 
-// The message of the InputError `f` throws ("" if none).
-template <class F>
-std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
-TEST(HistorianReferences, OnlyCompleteIdentificationRunsOfThePumpEachOnce) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianReferencesTest, OnlyCompleteIdentificationRunsOfThePumpEachOnce) {
+  auto h = Historian::open(location());
   store_run(h, identification_json_text("P-1/a", "P-1"), RunStatus::complete);
   store_run(h, identification_json_text("P-1/b", "P-1"), RunStatus::complete);
   store_run(h, identification_json_text("P-1/recv", "P-1"), RunStatus::receiving);

@@ -44,13 +44,24 @@ inline StoredRun store_run(Historian& h, const std::string& run_id, const std::s
   return r;
 }
 
-// The run as received `days` ago.
-inline void received_days_ago(const std::string& path, const std::string& run_id, double days) {
-  raw_exec(path, ("UPDATE runs SET created_at = '" + utc_days_ago(days) + "' WHERE run_id = '" + run_id + "'").c_str());
+// The run as received at `created_at` (created_at's format), on either
+// backend; on PostgreSQL its chunks move with it (to that day's partition
+// if one exists, else to the default one).
+inline void received_at(const std::string& location, const std::string& run_id, const std::string& created_at) {
+  const std::string where = " WHERE run_id = '" + run_id + "'";
+  ambdiag::testing::raw_run(location, "UPDATE runs SET created_at = '" + created_at + "'" + where);
+  if (is_postgres_location(location))
+    ambdiag::testing::raw_run(location,
+                              "UPDATE sample_chunks SET run_created_at = CAST('" + created_at + "' AS timestamptz)" + where);
 }
 
-inline std::int64_t chunks_held(const std::string& path, const std::string& run_id) {
-  return raw_query_int(path, ("SELECT count(*) FROM sample_chunks WHERE run_id = '" + run_id + "'").c_str());
+// The run as received `days` ago.
+inline void received_days_ago(const std::string& location, const std::string& run_id, double days) {
+  received_at(location, run_id, utc_days_ago(days));
+}
+
+inline std::int64_t chunks_held(const std::string& location, const std::string& run_id) {
+  return ambdiag::testing::raw_int(location, "SELECT count(*) FROM sample_chunks WHERE run_id = '" + run_id + "'");
 }
 
 inline std::string samples_state(Historian& h, const std::string& run_id) {

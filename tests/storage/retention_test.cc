@@ -1,8 +1,9 @@
-// Retention (schema v8): policies as JSON and per pump, the sweep by age
+// Retention (schema v9), on both backends: policies as JSON and per pump, the sweep by age
 // and by size, what it never drops (reference runs, runs an open alarm or a
 // queued or running job names, runs still receiving), FRFs after samples,
 // monitoring, idempotency, the lease, a sweep stopped half way, and what a
-// dropped run looks like to readers and writers.
+// dropped run looks like to readers and writers; on PostgreSQL a day
+// partition dropped whole.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -23,6 +24,13 @@ using nlohmann::json;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
+// A retention test on each backend (Backends/RetentionTest.X/sqlite|postgres).
+class RetentionTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(RetentionTest);
+
+using ambdiag::testing::raw_int;
+using ambdiag::testing::raw_run;
+
 std::string error_of(const std::function<void()>& f) {
   try {
     f();
@@ -38,6 +46,21 @@ Historian with_one_old_run(const std::string& path) {
   store_run(h, "P-7/a", "P-7", 500, 1);
   received_days_ago(path, "P-7/a", 100);
   return h;
+}
+
+// PostgreSQL: a day partition of sample_chunks for `day` ("2026-08-18")
+// named as the historian names them; its table name.
+std::string make_day_partition(const std::string& location, const std::string& day) {
+  const std::string name = "sample_chunks_d" + day.substr(0, 4) + day.substr(5, 2) + day.substr(8, 2);
+  const std::string from = "CAST('" + day + " 00:00:00+00' AS timestamptz)";
+  raw_run(location, "CREATE TABLE " + name + " PARTITION OF sample_chunks FOR VALUES FROM (" + from + ") TO (" + from +
+                        " + interval '1 day')");
+  return name;
+}
+
+std::int64_t tables_named(const std::string& location, const std::string& name) {
+  return raw_int(location, "SELECT count(*) FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace WHERE "
+                           "n.nspname = current_schema() AND c.relname = '" + name + "'");
 }
 
 std::vector<std::string> dropped_ids(const SweepReport& r, const std::string& what = "samples") {
@@ -76,8 +99,8 @@ TEST(RetentionPolicy, EveryBadValueIsRefusedNamingItsKey) {
   EXPECT_NE(error("[1]").find("P: must be a JSON object"), std::string::npos);
 }
 
-TEST(RetentionPolicy, APumpsPolicyIsVersionedWithWhoAndWhen) {
-  auto h = Historian::open(db_path());
+TEST_P(RetentionTest, APumpsPolicyIsVersionedWithWhoAndWhen) {
+  auto h = Historian::open(location());
   EXPECT_NE(error_of([&] { h.put_retention_policy("P-7", "{}", "erin"); }).find("unknown pump"), std::string::npos);
   store_run(h, "P-7/r1", "P-7", 10, 1);
   EXPECT_FALSE(h.find_retention_policy("P-7"));
@@ -108,8 +131,8 @@ TEST(RetentionPolicy, AFileOfTheSchemaBeforeRetentionGetsItWithEveryRunHeld) {
     auto h = Historian::open(path);
     store_run(h, "P-7/old", "P-7", 500, 1);
   }
-  downgrade_schema(path, 7);
-  ASSERT_EQ(raw_query_int(path, "PRAGMA user_version"), 7);
+  downgrade_schema(path, 8);
+  ASSERT_EQ(raw_query_int(path, "PRAGMA user_version"), 8);
   auto h = Historian::open(path);
   EXPECT_EQ(raw_query_int(path, "PRAGMA user_version"), Historian::schema_version());
   EXPECT_EQ(samples_state(h, "P-7/old"), "held");
@@ -118,8 +141,8 @@ TEST(RetentionPolicy, AFileOfTheSchemaBeforeRetentionGetsItWithEveryRunHeld) {
   EXPECT_EQ(h.sweep_retention(samples_for_days(30)).samples_runs, 1);
 }
 
-TEST(RetentionSweep, DropsTheSamplesOfRunsPastTheAgeAndKeepsTheRunsListed) {
-  const auto path = db_path();
+TEST_P(RetentionTest, DropsTheSamplesOfRunsPastTheAgeAndKeepsTheRunsListed) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto old_run = store_run(h, "P-7/old", "P-7", 3000, 1);
   const auto young = store_run(h, "P-7/young", "P-7", 3000, 2);
@@ -165,11 +188,13 @@ TEST(RetentionSweep, DropsTheSamplesOfRunsPastTheAgeAndKeepsTheRunsListed) {
   const auto again = h.sweep_retention(samples_for_days(30));
   EXPECT_TRUE(again.runs.empty());
   EXPECT_EQ(again.transactions, 0);
-  EXPECT_EQ(raw_integrity_check(path), "ok");
+  if (!postgres()) {
+    EXPECT_EQ(raw_integrity_check(path), "ok");
+  }
 }
 
-TEST(RetentionSweep, BySizeDropsTheOldestRunsUntilThePumpHoldsNoMore) {
-  const auto path = db_path();
+TEST_P(RetentionTest, BySizeDropsTheOldestRunsUntilThePumpHoldsNoMore) {
+  const auto path = location();
   auto h = Historian::open(path);
   std::vector<StoredRun> runs;
   for (int i = 0; i < 5; ++i) {  // 16 000 bytes each, received a day apart, oldest first
@@ -188,8 +213,8 @@ TEST(RetentionSweep, BySizeDropsTheOldestRunsUntilThePumpHoldsNoMore) {
   EXPECT_TRUE(h.sweep_retention(p).runs.empty());
 }
 
-TEST(RetentionSweep, AgeAndSizeTogetherAndAPumpsOwnPolicyOverTheDefaults) {
-  const auto path = db_path();
+TEST_P(RetentionTest, AgeAndSizeTogetherAndAPumpsOwnPolicyOverTheDefaults) {
+  const auto path = location();
   auto h = Historian::open(path);
   for (int i = 0; i < 4; ++i) {
     store_run(h, "P-7/r" + std::to_string(i), "P-7", 2000, static_cast<unsigned>(i));
@@ -204,8 +229,8 @@ TEST(RetentionSweep, AgeAndSizeTogetherAndAPumpsOwnPolicyOverTheDefaults) {
   EXPECT_EQ(r.pumps, 2);
 }
 
-TEST(RetentionSweep, NeverDropsReferenceRunsRunsOfOpenAlarmsOrPendingJobsOrRunsStillReceiving) {
-  const auto path = db_path();
+TEST_P(RetentionTest, NeverDropsReferenceRunsRunsOfOpenAlarmsOrPendingJobsOrRunsStillReceiving) {
+  const auto path = location();
   auto h = Historian::open(path);
   for (const char* id : {"P-7/ref1", "P-7/ref2", "P-7/alarm", "P-7/closed", "P-7/queued", "P-7/running", "P-7/done", "P-7/plain"})
     store_run(h, id, "P-7", 500, 1, 500, true);
@@ -253,8 +278,8 @@ TEST(RetentionSweep, NeverDropsReferenceRunsRunsOfOpenAlarmsOrPendingJobsOrRunsS
   EXPECT_EQ(chunks_held(path, "P-7/receiving"), 1);
 }
 
-TEST(RetentionSweep, FrfsGoAfterTheSamplesOnlyTheAnalysesFilesAndKeepTheResults) {
-  const auto path = db_path();
+TEST_P(RetentionTest, FrfsGoAfterTheSamplesOnlyTheAnalysesFilesAndKeepTheResults) {
+  const auto path = location();
   auto h = Historian::open(path);
   store_run(h, "P-7/a", "P-7", 500, 1, 500, true);
   store_run(h, "P-7/b", "P-7", 500, 2, 500, true);
@@ -293,8 +318,8 @@ TEST(RetentionSweep, FrfsGoAfterTheSamplesOnlyTheAnalysesFilesAndKeepTheResults)
   EXPECT_TRUE(h.sweep_retention(p).runs.empty());
 }
 
-TEST(RetentionSweep, AReferenceNeedsAnFrfOnceTheSamplesAreGone) {
-  const auto path = db_path();
+TEST_P(RetentionTest, AReferenceNeedsAnFrfOnceTheSamplesAreGone) {
+  const auto path = location();
   auto h = Historian::open(path);
   store_run(h, "P-7/a", "P-7", 500, 1, 500, true);
   store_run(h, "P-7/b", "P-7", 500, 2, 500, true);
@@ -311,8 +336,8 @@ TEST(RetentionSweep, AReferenceNeedsAnFrfOnceTheSamplesAreGone) {
   EXPECT_EQ(h.put_reference("P-7", {"P-7/c", "P-7/a"}, "erin"), 1);
 }
 
-TEST(RetentionSweep, MonitoringSnapshotsOlderThanTheirDaysInBatches) {
-  auto h = Historian::open(db_path());
+TEST_P(RetentionTest, MonitoringSnapshotsOlderThanTheirDaysInBatches) {
+  auto h = Historian::open(location());
   const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   std::vector<MonitoringSnapshot> snaps;
   for (int i = 0; i < 50; ++i) {  // one every hour for 50 hours back
@@ -339,8 +364,8 @@ TEST(RetentionSweep, MonitoringSnapshotsOlderThanTheirDaysInBatches) {
   EXPECT_EQ(left.front().time_ns, now_ns - 23 * 3600'000'000'000);
 }
 
-TEST(RetentionSweep, ADryRunReportsWhatTheSweepThenDrops) {
-  const auto path = db_path();
+TEST_P(RetentionTest, ADryRunReportsWhatTheSweepThenDrops) {
+  const auto path = location();
   auto h = Historian::open(path);
   for (int i = 0; i < 4; ++i) {
     store_run(h, "P-7/r" + std::to_string(i), "P-7", 1000, static_cast<unsigned>(i), 1000, true);
@@ -367,8 +392,8 @@ TEST(RetentionSweep, ADryRunReportsWhatTheSweepThenDrops) {
   EXPECT_EQ(done.samples_bytes, plan.samples_bytes);
 }
 
-TEST(RetentionSweep, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinishedByTheNextSweep) {
-  const auto path = db_path();
+TEST_P(RetentionTest, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinishedByTheNextSweep) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto run = store_run(h, "P-7/big", "P-7", 10000, 4, 1000);  // 10 chunks of 8000 bytes
   received_days_ago(path, run.run_id, 100);
@@ -384,7 +409,7 @@ TEST(RetentionSweep, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinished
   // Half way it already reads as dropped: no reader sees a part of it.
   EXPECT_EQ(samples_state(h, run.run_id), "dropped");
   EXPECT_NE(error_of([&] { h.read_samples(run.run_id); }).find("dropped by retention"), std::string::npos);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropping'"), 1);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropping'"), 1);
 
   opt.stop = nullptr;
   r = h.sweep_retention(samples_for_days(30), opt);
@@ -395,20 +420,20 @@ TEST(RetentionSweep, ALargeRunGoesInBoundedTransactionsAndAStoppedDropIsFinished
   EXPECT_LE(r.longest_transaction_s, r.transactions_s);
   EXPECT_EQ(chunks_held(path, run.run_id), 0);
   EXPECT_EQ(h.find_run(run.run_id)->samples_dropped_bytes, 80000);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropped'"), 1);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM runs WHERE samples_state = 'dropped'"), 1);
 }
 
-TEST(RetentionSweep, TheLeaseKeepsASecondSweepOutUntilItIsReleasedOrExpires) {
-  const auto path = db_path();
+TEST_P(RetentionTest, TheLeaseKeepsASecondSweepOutUntilItIsReleasedOrExpires) {
+  const auto path = location();
   auto h = with_one_old_run(path);
   auto other = Historian::open(path);
   // Another sweep holds the lease (a sweep of another process, running).
-  raw_exec(path, ("INSERT INTO retention_lease VALUES ('sweep', 'other@host', '" + utc_days_ago(-1.0 / 24) + "')").c_str());
+  raw_run(path, "INSERT INTO retention_lease VALUES ('sweep', 'other@host', '" + utc_days_ago(-1.0 / 24) + "')");
   auto r = h.sweep_retention(samples_for_days(30));
   EXPECT_NE(r.skipped.find("another sweep holds the retention lease: other@host until"), std::string::npos) << r.skipped;
   EXPECT_EQ(samples_state(h, "P-7/a"), "held");
   // Expired (the other died): taken over.
-  raw_exec(path, ("UPDATE retention_lease SET expires_at = '" + utc_days_ago(1.0 / 24) + "'").c_str());
+  raw_run(path, "UPDATE retention_lease SET expires_at = '" + utc_days_ago(1.0 / 24) + "'");
   r = h.sweep_retention(samples_for_days(30));
   EXPECT_TRUE(r.skipped.empty());
   EXPECT_EQ(r.samples_runs, 1);
@@ -416,8 +441,8 @@ TEST(RetentionSweep, TheLeaseKeepsASecondSweepOutUntilItIsReleasedOrExpires) {
   EXPECT_TRUE(other.sweep_retention(samples_for_days(30)).skipped.empty());
 }
 
-TEST(RetentionSweep, TwoConnectionsSweepingAtOnceDropEachRunOnce) {
-  const auto path = db_path();
+TEST_P(RetentionTest, TwoConnectionsSweepingAtOnceDropEachRunOnce) {
+  const auto path = location();
   {
     auto h = Historian::open(path);
     for (int i = 0; i < 20; ++i) {
@@ -440,17 +465,67 @@ TEST(RetentionSweep, TwoConnectionsSweepingAtOnceDropEachRunOnce) {
     for (const auto& id : dropped_ids(r)) EXPECT_TRUE(seen.insert(id).second) << id << " dropped twice";
   EXPECT_EQ(seen.size(), 20u) << reports[0].skipped << " / " << reports[1].skipped;
   EXPECT_EQ(reports[0].samples_bytes + reports[1].samples_bytes, 20 * 4000);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM sample_chunks"), 0);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM sample_chunks"), 0);
 }
 
-TEST(RetentionSweep, AStoredPolicyThatDoesNotReadDropsNothingOfItsPump) {
-  const auto path = db_path();
+TEST_P(RetentionTest, AStoredPolicyThatDoesNotReadDropsNothingOfItsPump) {
+  const auto path = location();
   auto h = with_one_old_run(path);
-  raw_exec(path, "INSERT INTO retention_policies VALUES ('P-7', 1, '{\"samples_days\": \"soon\"}', '2026-01-01T00:00:00.000Z', 'x')");
+  raw_run(path, "INSERT INTO retention_policies VALUES ('P-7', 1, '{\"samples_days\": \"soon\"}', '2026-01-01T00:00:00.000Z', 'x')");
   const auto r = h.sweep_retention(samples_for_days(30));
   ASSERT_EQ(r.errors.size(), 1u);
   EXPECT_NE(r.errors[0].find("samples_days"), std::string::npos) << r.errors[0];
   EXPECT_EQ(samples_state(h, "P-7/a"), "held");
+}
+
+TEST_P(RetentionTest, OnPostgreSQLADayPartitionWithoutAKeptRunIsDroppedWholeAndKeptRunsStream) {
+  if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
+  const auto& path = location();
+  auto h = Historian::open(path);
+  const std::string day_a = utc_days_ago(100).substr(0, 10), day_b = utc_days_ago(101).substr(0, 10);
+  const std::string part_a = make_day_partition(path, day_a), part_b = make_day_partition(path, day_b);
+  std::map<std::string, StoredRun> runs;
+  // Day A: two plain runs of two pumps. Day B: a plain run, a reference
+  // run and a run whose analysis is queued.
+  runs["P-7/a1"] = store_run(h, "P-7/a1", "P-7", 3000, 1);
+  runs["P-8/a2"] = store_run(h, "P-8/a2", "P-8", 2000, 2);
+  for (const char* id : {"P-7/b1", "P-7/bref", "P-7/bjob"}) runs[id] = store_run(h, id, "P-7", 3000, 3, 1000, true);
+  h.put_reference("P-7", {"P-7/bref"}, "erin");
+  h.enqueue_job({"analysis", "P-7", "P-7/bjob", 1, 0});
+  for (const char* id : {"P-7/a1", "P-8/a2"}) received_at(path, id, day_a + "T12:00:00.000Z");
+  for (const char* id : {"P-7/b1", "P-7/bref", "P-7/bjob"}) received_at(path, id, day_b + "T06:00:00.000Z");
+  ASSERT_EQ(raw_int(path, "SELECT count(*) FROM " + part_a), 5) << "3 + 2 chunks moved into day A's partition";
+
+  const auto r = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(r.partitions, 1);
+  EXPECT_EQ(tables_named(path, part_a), 0) << "day A's partition is gone";
+  EXPECT_EQ(tables_named(path, part_b), 1) << "day B holds kept runs";
+  auto got = dropped_ids(r);
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, (std::vector<std::string>{"P-7/a1", "P-7/b1", "P-8/a2"}));
+  EXPECT_EQ(r.samples_bytes, static_cast<std::int64_t>(runs["P-7/a1"].bytes.size() + runs["P-8/a2"].bytes.size() +
+                                                       runs["P-7/b1"].bytes.size()));
+  for (const char* id : {"P-7/a1", "P-8/a2", "P-7/b1"}) {
+    const auto info = h.find_run(id);
+    EXPECT_TRUE(info->samples_dropped_at) << id;
+    EXPECT_EQ(info->samples_dropped_bytes, static_cast<std::int64_t>(runs[id].bytes.size())) << id;
+    EXPECT_EQ(chunks_held(path, id), 0) << id;
+  }
+  // The kept runs of day B still stream, byte for byte.
+  for (const char* id : {"P-7/bref", "P-7/bjob"}) {
+    std::string streamed;
+    h.stream_samples(id, [&](std::span<const std::uint8_t> b) {
+      streamed.append(reinterpret_cast<const char*>(b.data()), b.size());
+      return true;
+    });
+    EXPECT_EQ(streamed, ambdiag::testing::as_string(runs[id].bytes)) << id;
+  }
+  // Idempotent; and new runs still go in (today's partition).
+  const auto again = h.sweep_retention(samples_for_days(30));
+  EXPECT_TRUE(again.runs.empty());
+  EXPECT_EQ(again.partitions, 0);
+  const auto fresh = store_run(h, "P-7/new", "P-7", 1000, 9);
+  EXPECT_EQ(ambdiag::testing::as_string(fresh.bytes), h.read_samples("P-7/new"));
 }
 
 }  // namespace

@@ -42,13 +42,18 @@ inline void raw_exec(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
-// Undoes migration 8 (retention): its tables, indexes and the runs' columns.
-inline constexpr const char* kUndoRetentionV8Sql =
+// Undoes migration 9 (retention): its tables, indexes and the runs' columns.
+inline constexpr const char* kUndoRetentionV9Sql =
     "DROP TABLE retention_lease; DROP TABLE retention_policies; DROP INDEX alarms_open_by_run; "
     "DROP INDEX reference_runs_by_run; DROP INDEX runs_frf_held; DROP INDEX runs_samples_dropping; "
     "DROP INDEX runs_samples_held; ALTER TABLE runs DROP COLUMN frf_dropped_bytes; "
     "ALTER TABLE runs DROP COLUMN frf_dropped_at; ALTER TABLE runs DROP COLUMN samples_dropped_bytes; "
     "ALTER TABLE runs DROP COLUMN samples_dropped_at; ALTER TABLE runs DROP COLUMN samples_state;";
+
+// Undoes migration 8 (job leases, the events table).
+inline constexpr const char* kUndoLeasesEventsV8Sql =
+    "DROP TABLE events; DELETE FROM sqlite_sequence WHERE name = 'events'; DROP INDEX jobs_running_by_lease; "
+    "ALTER TABLE jobs DROP COLUMN lease_expires_at;";
 
 // Undoes migration 7 (ingest groups' leases).
 inline constexpr const char* kUndoIngestLeasesV7Sql = "DROP TABLE ingest_leases;";
@@ -73,9 +78,10 @@ inline constexpr const char* kUndoServiceV4Sql =
     "NULL, result TEXT, error TEXT, created_at TEXT NOT NULL, updated_at TEXT NOT NULL) STRICT;";
 
 // A file of the current schema taken back to what migration `version`
-// (3, 4, 6 or 7) left, for the tests of upgrades.
+// (3, 4, 6, 7 or 8) left, for the tests of upgrades.
 inline void downgrade_schema(const std::string& path, int version) {
-  if (version < 8) raw_exec(path, kUndoRetentionV8Sql);
+  if (version < 9) raw_exec(path, kUndoRetentionV9Sql);
+  if (version < 8) raw_exec(path, kUndoLeasesEventsV8Sql);
   if (version < 7) raw_exec(path, kUndoIngestLeasesV7Sql);
   if (version < 6) raw_exec(path, kUndoAlarmsV6Sql);
   if (version < 5) raw_exec(path, kUndoTrendsV5Sql);

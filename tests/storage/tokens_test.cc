@@ -7,6 +7,7 @@
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/core/sha256.h"
 #include "ambdiag/storage/historian.h"
+#include "historian_fixture.h"
 #include "sqlite_raw.h"
 #include "test_support.h"
 
@@ -15,8 +16,11 @@ namespace {
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
-TEST(HistorianTokens, ASecretFindsItsHolderAndRoleUntilRevoked) {
-  const auto path = db_path();
+class HistorianTokensTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianTokensTest);
+
+TEST_P(HistorianTokensTest, ASecretFindsItsHolderAndRoleUntilRevoked) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto secret = h.add_token("alice", Role::engineer);
   const auto other = h.add_token("ops@plant-1", Role::admin);
@@ -60,8 +64,8 @@ TEST(HistorianTokens, ASecretFindsItsHolderAndRoleUntilRevoked) {
   EXPECT_FALSE(h.list_tokens()[0].revoked_at);
 }
 
-TEST(HistorianTokens, AnUnknownOrAlteredSecretFindsNobody) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTokensTest, AnUnknownOrAlteredSecretFindsNobody) {
+  auto h = Historian::open(location());
   const auto secret = h.add_token("alice", Role::viewer);
   EXPECT_FALSE(h.find_token(""));
   EXPECT_FALSE(h.find_token("amb_"));
@@ -91,8 +95,8 @@ TEST(HistorianTokens, TheFileHoldsTheHashButNeverTheSecret) {
   EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM tokens WHERE length(sha256) = 32"), 1);
 }
 
-TEST(HistorianTokens, NamesAreOneTo64SafeCharactersAndAnActiveNameIsTaken) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTokensTest, NamesAreOneTo64SafeCharactersAndAnActiveNameIsTaken) {
+  auto h = Historian::open(location());
   for (const std::string& bad : {std::string(""), std::string(65, 'a'), std::string("a b"), std::string("x/y"),
                                 std::string("caf\xc3\xa9"), std::string("a\nb"), std::string("a'b")})
     EXPECT_THROW(h.add_token(bad, Role::viewer), InputError) << bad;

@@ -21,6 +21,9 @@ using ambdiag::testing::run_json_text;
 
 std::string db_path() { return (ambdiag::testing::scratch_dir() / "h.db").string(); }
 
+class HistorianTrendsTest : public ambdiag::testing::BackendTest {};
+AMBDIAG_ON_BOTH_BACKENDS(HistorianTrendsTest);
+
 constexpr std::int64_t kHourNs = 3'600'000'000'000;
 const std::int64_t kT0 = ns_from_utc("2026-01-01T00:00:00Z", "t0");
 
@@ -56,8 +59,8 @@ std::vector<TrendPoint> all_points(Historian& h, const std::string& name) {
   return t ? t->points : std::vector<TrendPoint>{};
 }
 
-TEST(HistorianTrends, AnAnalysisResultBringsItsPointsAtTheRunsStart) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, AnAnalysisResultBringsItsPointsAtTheRunsStart) {
+  auto h = Historian::open(location());
   const auto r0 = add_run(h, 0), r1 = add_run(h, 1);
   ASSERT_TRUE(finish(h, analysis(r1), values(0.5, 51.0)));
   ASSERT_TRUE(finish(h, analysis(r0), values(0.25, 50.0)));
@@ -79,8 +82,8 @@ TEST(HistorianTrends, AnAnalysisResultBringsItsPointsAtTheRunsStart) {
   EXPECT_FALSE(h.query_trend("P-2", "detection.ratio", TrendQuery{}));
 }
 
-TEST(HistorianTrends, PointsAndResultAreOneTransaction) {
-  const auto path = db_path();
+TEST_P(HistorianTrendsTest, PointsAndResultAreOneTransaction) {
+  const auto path = location();
   auto h = Historian::open(path);
   const auto r0 = add_run(h, 0);
   const auto [id, created] = h.enqueue_job(analysis(r0));
@@ -91,24 +94,24 @@ TEST(HistorianTrends, PointsAndResultAreOneTransaction) {
   bad.push_back({"fit.nrmse", "1", std::nan(""), std::nullopt});
   EXPECT_THROW(h.finish_job(id, job->attempts, R"({"x": 1})", {}, bad), InputError);
   EXPECT_EQ(h.find_job(id)->status, JobStatus::running);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM series_points"), 0);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM series_points"), 0);
   // An attempt that no longer holds the job stores neither.
   EXPECT_FALSE(h.finish_job(id, job->attempts + 1, "{}", {}, values(0.5)));
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM series_points"), 0);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM series_points"), 0);
   // Inside a batch that rolls back, both go.
   {
     auto batch = h.write_batch();
     EXPECT_TRUE(h.finish_job(id, job->attempts, "{}", {}, values(0.5)));
   }
   EXPECT_EQ(h.find_job(id)->status, JobStatus::running);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM series_points"), 0);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM series_points"), 0);
   EXPECT_TRUE(h.finish_job(id, job->attempts, "{}", {}, values(0.5)));
   EXPECT_EQ(h.find_job(id)->status, JobStatus::done);
-  EXPECT_EQ(raw_query_int(path, "SELECT count(*) FROM series_points"), 2);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM series_points"), 2);
 }
 
-TEST(HistorianTrends, ANewerAnalysisOfTheRunReplacesItsPointsAndAnOlderOneDoesNot) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, ANewerAnalysisOfTheRunReplacesItsPointsAndAnOlderOneDoesNot) {
+  auto h = Historian::open(location());
   const auto r0 = add_run(h, 0);
   ASSERT_TRUE(finish(h, analysis(r0, 1, 0), values(0.5, 50.0)));
   // Reference version 1: a new job for the same run; its series differ.
@@ -131,8 +134,8 @@ TEST(HistorianTrends, ANewerAnalysisOfTheRunReplacesItsPointsAndAnOlderOneDoesNo
   EXPECT_DOUBLE_EQ(p[0].value, 3.0);
 }
 
-TEST(HistorianTrends, OnlyAnalysisJobsFeedTheSeries) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, OnlyAnalysisJobsFeedTheSeries) {
+  auto h = Historian::open(location());
   const auto r0 = add_run(h, 0);
   ASSERT_TRUE(finish(h, {"explain", "P-1", r0, 1, 0}, values(0.5)));
   ASSERT_TRUE(finish(h, {"reference", "P-1", "", 1, 1}, values(0.5)));
@@ -171,8 +174,8 @@ TEST(HistorianTrends, AVersion4FileGetsItsTableAndItsPointsFilledIn) {
   EXPECT_EQ(seen.size(), 2u);
 }
 
-TEST(HistorianTrends, RangeEdgesAreInclusive) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, RangeEdgesAreInclusive) {
+  auto h = Historian::open(location());
   for (int i = 0; i < 10; ++i) ASSERT_TRUE(finish(h, analysis(add_run(h, i)), values(i)));
   TrendQuery q;
   q.from_ns = kT0 + 2 * kHourNs;
@@ -195,8 +198,8 @@ TEST(HistorianTrends, RangeEdgesAreInclusive) {
   EXPECT_THROW(h.query_trend("P-1", "detection.ratio", q), InputError);
 }
 
-TEST(HistorianTrends, BucketsKeepEveryPeakAndCountEveryPoint) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, BucketsKeepEveryPeakAndCountEveryPoint) {
+  auto h = Historian::open(location());
   std::mt19937 rng(5);
   std::normal_distribution<double> noise(0.0, 1.0);
   std::vector<double> v;
@@ -237,8 +240,8 @@ TEST(HistorianTrends, BucketsKeepEveryPeakAndCountEveryPoint) {
   EXPECT_DOUBLE_EQ(t->buckets.back().last, v.back());
 }
 
-TEST(HistorianTrends, RawPagesGoOnWhereTheLastStoppedWithoutRepeats) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, RawPagesGoOnWhereTheLastStoppedWithoutRepeats) {
+  auto h = Historian::open(location());
   for (int i = 0; i < 25; ++i) ASSERT_TRUE(finish(h, analysis(add_run(h, i)), values(i)));
   TrendQuery q;
   q.raw = true;
@@ -259,8 +262,8 @@ TEST(HistorianTrends, RawPagesGoOnWhereTheLastStoppedWithoutRepeats) {
   for (int i = 0; i < 25; ++i) EXPECT_DOUBLE_EQ(got[static_cast<size_t>(i)], i);
 }
 
-TEST(HistorianTrends, MonitoringValuesAreSeriesReadFromTheSnapshots) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, MonitoringValuesAreSeriesReadFromTheSnapshots) {
+  auto h = Historian::open(location());
   EXPECT_TRUE(h.list_series("P-1").empty());
   std::vector<MonitoringSnapshot> snaps;
   for (int i = 0; i < 5; ++i) {
@@ -297,8 +300,8 @@ TEST(HistorianTrends, MonitoringValuesAreSeriesReadFromTheSnapshots) {
   EXPECT_FALSE(h.query_trend("P-1", "monitoring.orbit_major_m", TrendQuery{}));
 }
 
-TEST(HistorianTrends, PointsOfGivenRunsForTheReferenceBand) {
-  auto h = Historian::open(db_path());
+TEST_P(HistorianTrendsTest, PointsOfGivenRunsForTheReferenceBand) {
+  auto h = Historian::open(location());
   std::vector<std::string> runs;
   for (int i = 0; i < 6; ++i) {
     runs.push_back(add_run(h, i));

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "ambdiag/core/error.h"
+#include "ambdiag/server/events.h"
 #include "ambdiag/storage/monitoring.h"
 
 namespace ambdiag::server::detail {
@@ -156,6 +157,9 @@ RunFacts AlarmEvaluator::run_facts(Historian& h, const storage::RunInfo& run, co
 
 void AlarmEvaluator::commit(Historian::WriteBatch& batch, Historian& h, storage::AlarmChanges& changes) {
   if (!changes.empty()) h.apply_alarm_changes(changes);
+  // Each journal entry is announced (GET /api/v1/events) in its transaction.
+  for (const auto& [index, e] : changes.events)
+    h.append_event("alarm.transition", e.pump_id, event_data(alarm_event_json(e, true)));
   batch.commit();
   if (sink_)
     for (const auto& [index, e] : changes.events) sink_(alarm_event_json(e, true));

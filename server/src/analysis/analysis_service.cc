@@ -17,6 +17,7 @@
 #include "alarms/alarm_rules.h"
 #include "alarms/alarm_service.h"
 #include "ambdiag/storage/historian.h"
+#include "job_lease.h"
 #include "job_runner.h"
 #include "run_analysis.h"
 #include "trends/run_series.h"
@@ -26,6 +27,37 @@ namespace ambdiag::server {
 
 using storage::Historian;
 using storage::JobKey;
+
+namespace {
+
+// The pump's current versions: (model, reference; 0 for none). nullopt
+// without a model: nothing of the pump is analysed.
+std::optional<std::pair<int, int>> current_versions(Historian& h, const std::string& pump_id) {
+  const auto model = h.find_model(pump_id);
+  if (!model) return std::nullopt;
+  const auto ref = h.find_reference(pump_id);
+  return std::pair{model->version, ref ? ref->version : 0};
+}
+
+// One analysis job for the run against the pump's versions (m, r) (and the
+// reference job it needs). Idempotent.
+bool schedule_run(Historian& h, const storage::RunInfo& run, int m, int r) {
+  if (run.status != storage::RunStatus::complete || run.kind != "identification") return false;
+  const JobKey key{"analysis", run.pump_id, run.run_id, m, r};
+  if (h.find_job(key)) return false;
+  std::optional<std::int64_t> depends;
+  if (r > 0) depends = h.enqueue_job(JobKey{"reference", run.pump_id, "", m, r}).first;
+  return h.enqueue_job(key, "{}", depends).second;
+}
+
+}  // namespace
+
+bool queue_run_analysis(Historian& h, const std::string& run_id) {
+  const auto run = h.find_run(run_id);
+  if (!run) throw InputError("queue_run_analysis: unknown run '" + run_id + "'");
+  const auto v = current_versions(h, run->pump_id);
+  return v && schedule_run(h, *run, v->first, v->second);
+}
 
 struct AnalysisService::Impl {
   AnalysisOptions opt;
@@ -43,16 +75,10 @@ struct AnalysisService::Impl {
   std::vector<std::thread> workers;
 
   std::optional<detail::AlarmService> alarms;
+  std::optional<detail::LeaseKeeper> leases;  // with workers
 
   explicit Impl(AnalysisOptions o) : opt(std::move(o)) {
     if (opt.metrics) counters.attach(*opt.metrics);
-    // Every alarm journal entry also goes out as a live update
-    // ("alarm.transition", GET /api/v1/events), after its commit.
-    if (opt.events)
-      opt.on_alarm_event = [given = opt.on_alarm_event, bus = opt.events](const nlohmann::json& e) {
-        if (given) given(e);
-        bus->publish("alarm.transition", e);
-      };
     // The built-in rules with the server's own over them, validated now: a
     // bad file stops the server at its start, not at its first run.
     const auto& given = opt.alarm_defaults;
@@ -60,39 +86,26 @@ struct AnalysisService::Impl {
                                                       given.is_null() ? nlohmann::json::object() : given, "alarm defaults");
   }
 
-  void publish(const std::string& type, const nlohmann::json& data) {
-    if (opt.events) opt.events->publish(type, data);
-  }
-
-  // The pump's current versions: (model, reference; 0 for none). nullopt
-  // without a model: nothing of the pump is analysed.
-  std::optional<std::pair<int, int>> current_versions_locked(const std::string& pump_id) {
-    const auto model = ctl->find_model(pump_id);
-    if (!model) return std::nullopt;
-    const auto ref = ctl->find_reference(pump_id);
-    return std::pair{model->version, ref ? ref->version : 0};
-  }
-
-  // One analysis job for the run against the pump's versions (m, r) (and
-  // the reference job it needs). Idempotent. Caller holds ctl_mu.
-  bool schedule_run_locked(const storage::RunInfo& run, int m, int r) {
-    if (run.status != storage::RunStatus::complete || run.kind != "identification") return false;
-    const JobKey key{"analysis", run.pump_id, run.run_id, m, r};
-    if (ctl->find_job(key)) return false;
-    std::optional<std::int64_t> depends;
-    if (r > 0) depends = ctl->enqueue_job(JobKey{"reference", run.pump_id, "", m, r}).first;
-    return ctl->enqueue_job(key, "{}", depends).second;
+  // `write` and the event announcing it ("model.new", ...) in one
+  // transaction on ctl. Caller holds ctl_mu.
+  template <class F>
+  auto announced(const std::string& type, const std::string& pump_id, F&& write) {
+    auto batch = ctl->write_batch();
+    auto [value, data] = write();
+    ctl->append_event(type, pump_id, event_data(data));
+    batch.commit();
+    return value;
   }
 
   // Every run of the pump against its current versions; what older versions
   // still had queued is cancelled. Caller holds ctl_mu.
   int schedule_pump_locked(const std::string& pump_id) {
-    const auto v = current_versions_locked(pump_id);
+    const auto v = current_versions(*ctl, pump_id);
     if (!v) return 0;
     const auto [m, r] = *v;
     for (const char* kind : {"analysis", "reference"}) ctl->cancel_superseded_jobs(pump_id, kind, m, r);
     int n = 0;
-    for (const auto& run : ctl->list_runs(pump_id)) n += schedule_run_locked(run, m, r) ? 1 : 0;
+    for (const auto& run : ctl->list_runs(pump_id)) n += schedule_run(*ctl, run, m, r) ? 1 : 0;
     return n;
   }
 
@@ -108,12 +121,11 @@ struct AnalysisService::Impl {
       }
       try {
         std::lock_guard lock(ctl_mu);
-        const auto run = ctl->find_run(run_id);
-        const auto v = run ? current_versions_locked(run->pump_id) : std::nullopt;
-        if (v && schedule_run_locked(*run, v->first, v->second)) work.notify();
+        queue_run_analysis(*ctl, run_id);  // usually the ingest's commit has
       } catch (const std::exception& e) {
         std::fprintf(stderr, "ambdiag serve: cannot queue the analysis of run %s: %s\n", run_id.c_str(), e.what());
       }
+      work.notify();
     }
   }
 };
@@ -129,9 +141,14 @@ AnalysisService::~AnalysisService() { stop(); }
 void AnalysisService::start() {
   auto& I = *impl_;
   if (!I.workers.empty() || I.scheduler.joinable()) return;
+  I.scheduler = std::thread([&I] { I.scheduler_loop(); });
+  if (I.opt.workers <= 0) return;  // this process runs no jobs
+  // What another process may be running is left to its lease; what expired
+  // (a dead server's) is queued again now.
+  I.leases.emplace(I.opt.db_path, I.opt.job_lease, I.work, I.opt.verbose);
+  I.leases->start();
   {
     std::lock_guard lock(I.ctl_mu);
-    const int requeued = I.ctl->requeue_running_jobs();
     // Trend points of analyses stored before schema v5 (or without them).
     const int backfilled = I.ctl->backfill_series([](const std::string& result) {
       return detail::run_series(nlohmann::json::parse(result, nullptr, false));
@@ -140,20 +157,19 @@ void AnalysisService::start() {
       std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
     int queued = 0;
     for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
-    if (I.opt.verbose && (requeued > 0 || queued > 0))
-      std::fprintf(stderr, "ambdiag serve: %d interrupted jobs queued again, %d runs queued for analysis\n", requeued, queued);
+    if (I.opt.verbose && queued > 0) std::fprintf(stderr, "ambdiag serve: %d runs queued for analysis\n", queued);
   }
   I.alarms->start();
-  I.scheduler = std::thread([&I] { I.scheduler_loop(); });
-  for (int k = 0; k < std::max(1, I.opt.workers); ++k) {
-    I.workers.emplace_back([&I, k] {
+  const std::string prefix = I.opt.instance.empty() ? "" : I.opt.instance + "/";
+  for (int k = 0; k < I.opt.workers; ++k) {
+    I.workers.emplace_back([&I, k, prefix] {
       if (I.opt.idle_priority) {
         // Analysis takes only what ingest and REST leave: a job is minutes
         // late at worst, a block never is.
         sched_param p{};
         pthread_setschedparam(pthread_self(), SCHED_IDLE, &p);
       }
-      detail::JobRunner runner(I.opt, "worker-" + std::to_string(k), I.counters, I.work, I.stop_flag);
+      detail::JobRunner runner(I.opt, prefix + "worker-" + std::to_string(k), I.counters, I.work, I.stop_flag, *I.leases);
       runner.run();
     });
   }
@@ -171,6 +187,7 @@ void AnalysisService::stop() {
   if (I.scheduler.joinable()) I.scheduler.join();
   for (auto& t : I.workers) t.join();
   I.workers.clear();
+  if (I.leases) I.leases->stop();
   if (I.alarms) I.alarms->stop();
 }
 
@@ -185,10 +202,12 @@ void AnalysisService::notify_run_complete(const std::string& run_id) {
 int AnalysisService::put_model(const std::string& pump_id, const std::string& plant_json, const std::string& by) {
   detail::plant_from_text(plant_json, "model of pump " + pump_id);  // InputError names the field
   std::lock_guard lock(impl_->ctl_mu);
-  const int version = impl_->ctl->put_model(pump_id, plant_json, by);
+  const int version = impl_->announced("model.new", pump_id, [&] {
+    const int v = impl_->ctl->put_model(pump_id, plant_json, by);
+    return std::pair{v, nlohmann::json{{"pump_id", pump_id}, {"model_version", v}, {"by", by}}};
+  });
   impl_->schedule_pump_locked(pump_id);
   impl_->work.notify_all();
-  impl_->publish("model.new", {{"pump_id", pump_id}, {"model_version", version}, {"by", by}});
   return version;
 }
 
@@ -203,12 +222,15 @@ AnalysisService::ReferenceReply AnalysisService::put_reference(const std::string
   if (run_ids.size() < 2)
     throw InputError("reference: runs: " + std::to_string(run_ids.size()) + " run(s); at least 2 are needed to learn the normal scatter");
   if (!model) throw ConflictError("pump '" + pump_id + "' has no model: PUT /api/v1/pumps/{pump_id}/model first");
-  const int version = h.put_reference(pump_id, run_ids, by);
-  const auto job = h.enqueue_job(JobKey{"reference", pump_id, "", model->version, version}).first;
+  const auto reply = impl_->announced("reference.new", pump_id, [&] {
+    const int version = h.put_reference(pump_id, run_ids, by);
+    const auto job = h.enqueue_job(JobKey{"reference", pump_id, "", model->version, version}).first;
+    return std::pair{ReferenceReply{job, version},
+                     nlohmann::json{{"pump_id", pump_id}, {"reference_version", version}, {"job_id", job}, {"by", by}}};
+  });
   impl_->schedule_pump_locked(pump_id);
   impl_->work.notify_all();
-  impl_->publish("reference.new", {{"pump_id", pump_id}, {"reference_version", version}, {"job_id", job}, {"by", by}});
-  return {job, version};
+  return reply;
 }
 
 std::int64_t AnalysisService::request_explain(const std::string& run_id, const std::string&) {
@@ -236,11 +258,13 @@ int AnalysisService::adopt_explained_model(std::int64_t job_id, const std::strin
                         ": only a done explain job has a model to adopt");
   const auto art = h.find_artifact(job_id, "improved_model.json");
   if (!art) throw ConflictError("job " + std::to_string(job_id) + " kept no improved model");
-  const int version = h.put_model(job->key.pump_id, art->data, by,
-                                  "adopted from explain job " + std::to_string(job_id) + " of run " + job->key.run_id);
+  const int version = impl_->announced("model.new", job->key.pump_id, [&] {
+    const int v = h.put_model(job->key.pump_id, art->data, by,
+                              "adopted from explain job " + std::to_string(job_id) + " of run " + job->key.run_id);
+    return std::pair{v, nlohmann::json{{"pump_id", job->key.pump_id}, {"model_version", v}, {"by", by}, {"adopted_from_job", job_id}}};
+  });
   impl_->schedule_pump_locked(job->key.pump_id);
   impl_->work.notify_all();
-  impl_->publish("model.new", {{"pump_id", job->key.pump_id}, {"model_version", version}, {"by", by}, {"adopted_from_job", job_id}});
   return version;
 }
 

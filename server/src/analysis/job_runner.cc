@@ -21,8 +21,9 @@ namespace {
 using nlohmann::json;
 using storage::Historian;
 
-// Thrown from the progress callback when the attempt lost its job (cancelled
-// or requeued) or the server stops: the work is abandoned, nothing stored.
+// Thrown from the progress callback when the attempt lost its job (cancelled,
+// requeued, its lease expired) or the server stops: the work is abandoned,
+// nothing stored.
 struct Abandoned {};
 
 // SQLite lets one connection write at a time; under continuous ingest a
@@ -185,12 +186,13 @@ json JobCounters::to_json() const {
 }
 
 JobRunner::JobRunner(const AnalysisOptions& opt, std::string name, JobCounters& counters, WorkSignal& work,
-                     const std::atomic<bool>& stop)
+                     const std::atomic<bool>& stop, LeaseKeeper& leases)
     : opt_(opt),
       name_(std::move(name)),
       counters_(counters),
       work_(work),
       stop_(stop),
+      leases_(leases),
       h_(Historian::open(opt.db_path, Historian::Mode::write)),
       alarms_(opt.alarm_defaults, opt.on_alarm_event) {}
 
@@ -229,20 +231,27 @@ const OperatingReference& JobRunner::reference_of(std::int64_t reference_job) {
 bool JobRunner::run_one() {
   const auto job = [&] {
     const NormalPriorityScope normal;
-    return h_.claim_job(name_);
+    return h_.claim_job(name_, {}, leases_.lease());
   }();
   if (!job) return false;
-  execute(*job);
+  const auto lost = leases_.hold(job->job_id, job->attempts);
+  try {
+    execute(*job, *lost);
+  } catch (...) {
+    leases_.release(job->job_id);
+    throw;
+  }
+  leases_.release(job->job_id);
   return true;
 }
 
-void JobRunner::execute(const storage::Job& job) {
+void JobRunner::execute(const storage::Job& job, const std::atomic<bool>& lost) {
   const auto wall0 = std::chrono::steady_clock::now();
   const double cpu0 = thread_cpu_s();
   auto last_report = wall0;
   double last_share = 0.0;
   const ProgressFn progress = [&](double share) {
-    if (stop_) throw Abandoned{};
+    if (stop_ || lost) throw Abandoned{};
     const auto now = std::chrono::steady_clock::now();
     if (share - last_share < 0.05 && now - last_report < std::chrono::seconds(1)) return;
     last_share = share;
@@ -255,6 +264,26 @@ void JobRunner::execute(const storage::Job& job) {
   bool ok = false;
   std::optional<std::string> failure;  // recorded as the job's error
   std::string summary;
+  // "job.done" / "job.failed" (GET /api/v1/events), stored with the result
+  // or the failure in one transaction: announced exactly when stored.
+  const auto event = [&](bool done, const std::string& error) {
+    json d = {{"job_id", job.job_id}, {"kind", job.key.kind}, {"pump_id", job.key.pump_id}, {"status", done ? "done" : "failed"},
+              {"model_version", job.key.model_version}, {"reference_version", job.key.reference_version}, {"summary", summary}};
+    if (!job.key.run_id.empty()) d["run_id"] = job.key.run_id;
+    if (!done) d["error"] = error;
+    h_.append_event(done ? "job.done" : "job.failed", job.key.pump_id, event_data(d));
+  };
+  // `write` (finish or fail, fenced) and its event in one transaction.
+  const auto store = [&](const auto& write, bool done, const std::string& error) {
+    const NormalPriorityScope normal;
+    return with_retries([&] {
+      auto batch = h_.write_batch();
+      if (!write()) return false;
+      event(done, error);
+      batch.commit();
+      return true;
+    });
+  };
   try {
     JobOutput out;
     const PlantModel plant = job_plant(h_, job);
@@ -293,16 +322,23 @@ void JobRunner::execute(const storage::Job& job) {
     // An analysis' trend values go in with its result (one transaction).
     std::optional<std::vector<SeriesValue>> series;
     if (job.key.kind == "analysis") series = run_series(out.result);
-    const NormalPriorityScope normal;
-    ok = with_retries([&] { return h_.finish_job(job.job_id, job.attempts, result_text, out.artifacts, series); });
+    ok = store([&] { return h_.finish_job(job.job_id, job.attempts, result_text, out.artifacts, series); }, true, "");
     if (!ok) summary = "result refused: the attempt no longer holds the job";
   } catch (const Abandoned&) {
-    summary = "abandoned";
+    summary = lost ? "abandoned: the attempt lost its job (lease expired, requeued or cancelled)" : "abandoned";
+    // The process stops: the job goes back at once rather than when its lease ends.
+    if (!lost) {
+      try {
+        const NormalPriorityScope normal;
+        if (h_.release_job(job.job_id, job.attempts)) summary += ", queued again";
+      } catch (const std::exception&) {  // then its lease expires
+      }
+    }
   } catch (const std::exception& e) {
     summary = std::string("failed: ") + e.what();
     try {
-      const NormalPriorityScope normal;
-      if (with_retries([&] { return h_.fail_job(job.job_id, job.attempts, e.what()); })) failure = e.what();
+      const std::string error = e.what();
+      if (store([&] { return h_.fail_job(job.job_id, job.attempts, error); }, false, error)) failure = error;
     } catch (const std::exception& e2) {
       std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
     }
@@ -310,15 +346,8 @@ void JobRunner::execute(const storage::Job& job) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const double cpu = thread_cpu_s() - cpu0;
   counters_.finished(job.key.kind, ok, cpu, wall);
-  if (opt_.events && (ok || failure)) {
-    json d = {{"job_id", job.job_id}, {"kind", job.key.kind}, {"pump_id", job.key.pump_id}, {"status", ok ? "done" : "failed"},
-              {"model_version", job.key.model_version}, {"reference_version", job.key.reference_version}, {"summary", summary}};
-    if (!job.key.run_id.empty()) d["run_id"] = job.key.run_id;
-    if (failure) d["error"] = *failure;
-    opt_.events->publish(ok ? "job.done" : "job.failed", d);
-  }
   // Done or failed (a failed analysis is poor data): the alarms follow.
-  if (job.key.kind == "analysis" && summary != "abandoned") evaluate_alarms(job.key.pump_id);
+  if (job.key.kind == "analysis" && (ok || failure)) evaluate_alarms(job.key.pump_id);
   if (opt_.verbose)
     std::fprintf(stderr, "ambdiag serve: %s (attempt %d): %s, %.2f s, %.2f CPU-s\n", what.c_str(), job.attempts,
                  summary.c_str(), wall, cpu);

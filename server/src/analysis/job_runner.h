@@ -1,6 +1,7 @@
 // One worker thread of the analysis service: claims jobs from the
-// historian's queue and runs them (run_analysis.h), storing each result
-// with its files in one transaction, fenced by the attempt number.
+// historian's queue with a lease (job_lease.h renews it) and runs them
+// (run_analysis.h), storing each result with its files and its event in
+// one transaction, fenced by the attempt number and the lease.
 #pragma once
 
 #include <atomic>
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "alarms/alarm_evaluator.h"
+#include "analysis/job_lease.h"
 #include "ambdiag/algorithms/diagnosis/operating_reference.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/metrics.h"
@@ -70,14 +72,14 @@ class JobCounters {
 class JobRunner {
  public:
   JobRunner(const AnalysisOptions& opt, std::string name, JobCounters& counters, WorkSignal& work,
-            const std::atomic<bool>& stop);
+            const std::atomic<bool>& stop, LeaseKeeper& leases);
   // Until stop: claim, run, store; wait for work when the queue is empty.
   void run();
   // Claims and runs one job if there is one; false when the queue was empty.
   bool run_one();
 
  private:
-  void execute(const storage::Job& job);
+  void execute(const storage::Job& job, const std::atomic<bool>& lost);
   // The reference a reference job learnt. The last one is kept: a pump's
   // runs come in a row after its reference changes, and reading and parsing
   // the 1.7 MB document (17 ms) again for each would add 3 % to every run.
@@ -90,6 +92,7 @@ class JobRunner {
   JobCounters& counters_;
   WorkSignal& work_;
   const std::atomic<bool>& stop_;
+  LeaseKeeper& leases_;
   storage::Historian h_;
   std::optional<std::pair<std::int64_t, OperatingReference>> cached_reference_;
   AlarmEvaluator alarms_;

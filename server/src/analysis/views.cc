@@ -110,6 +110,9 @@ json job_json(const storage::Job& job, bool with_result) {
   if (job.finished_at) j["finished_at"] = *job.finished_at;
   if (job.error) j["error"] = *job.error;
   if (job.depends_on) j["depends_on"] = *job.depends_on;
+  // Who runs it and until when its attempt holds it (docs/service.md "Several servers").
+  if (job.status == JobStatus::running) j["worker"] = job.worker;
+  if (job.lease_expires_at) j["lease_expires_at"] = *job.lease_expires_at;
   if (with_result && job.result_json) j["result"] = parse_or_null(job.result_json);
   return j;
 }

@@ -10,6 +10,7 @@ struct EventBus::Subscription::Queue {
   std::condition_variable cv;
   std::deque<Event> events;
   std::size_t max = 0;
+  std::uint64_t after = 0;  // what it was given at subscribe: later events only
   bool dropped = false, closed = false;
 };
 
@@ -25,14 +26,38 @@ std::uint64_t EventBus::publish(const std::string& type, const nlohmann::json& d
   // The type is a field line of the stream: a newline would forge fields.
   if (type.empty() || type.find_first_of("\r\n") != std::string::npos)
     throw std::logic_error("event type must be one non-empty line");
-  Event e{0, type, data.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)};
+  Event e{0, type, event_data(data)};
   std::lock_guard l(mu_);
   e.id = next_id_++;
+  deliver(e);
+  return e.id;
+}
+
+void EventBus::publish_stored(Event e) {
+  std::lock_guard l(mu_);
+  if (e.id < next_id_) return;  // held already (the tail read it twice) or older than where the bus started
+  next_id_ = e.id + 1;
+  deliver(e);
+}
+
+void EventBus::start_at(std::uint64_t id) {
+  std::lock_guard l(mu_);
+  if (!ring_.empty()) throw std::logic_error("EventBus::start_at after events were published");
+  next_id_ = id + 1;
+}
+
+void EventBus::set_history(History history, std::size_t max_replay) {
+  std::lock_guard l(mu_);
+  history_ = std::move(history);
+  max_replay_ = std::max<std::size_t>(1, max_replay);
+}
+
+void EventBus::deliver(const Event& e) {
   ring_.push_back(e);
   if (ring_.size() > capacity_) ring_.pop_front();
   for (const auto& q : subs_) {
     std::lock_guard ql(q->mu);
-    if (q->dropped || q->closed) continue;
+    if (q->dropped || q->closed || e.id <= q->after) continue;
     if (q->events.size() >= q->max) {
       q->dropped = true;  // a slow or dead client: its stream ends, the publisher goes on
       q->events.clear();
@@ -42,29 +67,52 @@ std::uint64_t EventBus::publish(const std::string& type, const nlohmann::json& d
     }
     q->cv.notify_all();
   }
-  return e.id;
 }
 
 std::unique_ptr<EventBus::Subscription> EventBus::subscribe(std::optional<std::uint64_t> last_id,
                                                             std::size_t max_queue) {
   auto q = std::make_shared<Subscription::Queue>();
   q->max = std::max<std::size_t>(1, max_queue);
-  std::lock_guard l(mu_);
+  std::unique_lock l(mu_);
   q->closed = closed_;
+  const auto oldest_held = [&] { return ring_.empty() ? next_id_ : ring_.front().id; };
+  // Replays what the ring holds after `after`; later events come as they are published.
+  const auto replay_ring = [&](std::uint64_t after) {
+    for (const auto& e : ring_)
+      if (e.id > after) q->events.push_back(e);
+    q->after = std::max(after, next_id_ - 1);
+  };
   if (last_id) {
-    const std::uint64_t newest = next_id_ - 1;
-    const std::uint64_t oldest_held = ring_.empty() ? next_id_ : ring_.front().id;
-    if (*last_id > newest || *last_id + 1 < oldest_held) {
-      const nlohmann::json d = {
-          {"reason", *last_id > newest
-                         ? "Last-Event-ID " + std::to_string(*last_id) + " is not of this server's events"
-                         : "events after " + std::to_string(*last_id) + " are no longer held"},
-          {"last_event_id", newest}};
-      q->events.push_back({newest, "reload", d.dump()});
+    if (*last_id < next_id_ && *last_id + 1 >= oldest_held()) {
+      replay_ring(*last_id);
     } else {
-      for (const auto& e : ring_)
-        if (e.id > *last_id) q->events.push_back(e);
+      // Older than the ring, or ahead of it (another server's tail was
+      // quicker): the history says whether the id is one of its own.
+      std::optional<std::vector<Event>> older;
+      if (const auto history = history_) {
+        l.unlock();
+        older = history(*last_id, max_replay_);
+        l.lock();
+      }
+      const std::uint64_t upto = older && !older->empty() ? older->back().id : *last_id;
+      // A history shorter than its maximum reaches the present; a full one must reach the ring.
+      if (older && (older->size() < max_replay_ || upto + 1 >= oldest_held())) {
+        q->events.assign(older->begin(), older->end());
+        replay_ring(upto);
+        q->after = std::max(q->after, upto);
+      } else {
+        const std::uint64_t newest = next_id_ - 1;
+        const nlohmann::json d = {
+            {"reason", *last_id > newest
+                           ? "Last-Event-ID " + std::to_string(*last_id) + " is not of this server's events"
+                           : "events after " + std::to_string(*last_id) + " are no longer held"},
+            {"last_event_id", newest}};
+        q->events.push_back({newest, "reload", d.dump()});
+        q->after = newest;
+      }
     }
+  } else {
+    q->after = next_id_ - 1;
   }
   subs_.push_back(q);
   return std::unique_ptr<Subscription>(new Subscription(*this, q));
@@ -124,6 +172,10 @@ std::string sse_frame(const Event& e) {
   // The type and data hold no newline (a type is ours, data is one line of
   // JSON, whose strings escape newlines), so each is one field line.
   return "id: " + std::to_string(e.id) + "\nevent: " + e.type + "\ndata: " + e.data + "\n\n";
+}
+
+std::string event_data(const nlohmann::json& data) {
+  return data.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 }  // namespace ambdiag::server

@@ -4,16 +4,24 @@
 // identification run of a pump with a model, and runs the jobs on worker
 // threads that only take the CPU ingest leaves (SCHED_IDLE).
 //
-// Jobs live in the historian (storage/service.h), so a job that was running
-// when the server died is queued again at the next start, and a result is
-// stored once: a worker's result is refused when its attempt no longer
+// Jobs live in the historian (storage/service.h) with a lease that the
+// process running them renews, so a job whose worker died or stalled is
+// queued again by any analysis process once its lease expires, and a result
+// is stored once: a worker's result is refused when its attempt no longer
 // holds the job. Changing a pump's model or reference queues the runs again
 // against the new versions and cancels what the old ones still had queued.
+// What it does is announced in the historian's events table, in the same
+// transaction (GET /api/v1/events on every server).
+//
+// Several processes may run one on the same database (docs/service.md
+// "Several servers"): with workers, a process runs jobs; without (workers
+// 0), it only takes REST writes and queues jobs.
 //
 // Threads: every public call may come from any thread (REST workers, the
 // ingest's commit thread); each thread here has its own connection.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -23,21 +31,30 @@
 
 #include <nlohmann/json.hpp>
 
+namespace ambdiag::storage {
+class Historian;
+}
+
 namespace ambdiag::server {
 
-class EventBus;
 class MetricsRegistry;
 
 struct AnalysisOptions {
   std::string db_path;
-  int workers = 2;              // analysis threads
+  // Analysis threads. 0: this process runs no jobs (no workers, no lease
+  // requeue, no alarm timer, no start-up catch-up); REST writes and
+  // queueing still work.
+  int workers = 2;
+  // Names this process' workers ("INSTANCE/worker-K", a job's `worker`);
+  // empty: "worker-K".
+  std::string instance;
+  // How long a claim holds a job without a renewal; renewed every third of
+  // it, expired leases requeued every half (`ambdiag serve --job-lease`).
+  std::chrono::milliseconds job_lease{10000};
   int proposed_reference_runs = 3;  // first N complete identification runs proposed as the reference
   double alpha = 1e-5;          // false-alarm rate of detection per run: kRecommendedAlphaPerRun (docs/diagnosis.md)
   bool idle_priority = true;    // workers at SCHED_IDLE: ingest and REST first
   bool verbose = true;          // one line per job on stderr
-  // Finished jobs ("job.done", "job.failed"), new models and references
-  // ("model.new", "reference.new") are published here (GET /api/v1/events).
-  EventBus* events = nullptr;
   // Job durations and CPU by kind are registered here (GET /metrics).
   MetricsRegistry* metrics = nullptr;
   // Alarms (docs/service.md "Alarms"): the server's default rules, applied
@@ -76,14 +93,17 @@ class AnalysisService {
   AnalysisService(const AnalysisService&) = delete;
   AnalysisService& operator=(const AnalysisService&) = delete;
 
-  // Requeues what a dead server left running, queues every run that lacks
-  // its analysis, starts the workers.
+  // With workers: requeues jobs whose lease expired, queues every run that
+  // lacks its analysis, evaluates pending alarms, starts the workers and
+  // the lease thread. Always: the thread that queues notified runs.
   void start();
-  // Finishes nothing new: running jobs are abandoned (queued again at the
-  // next start) after their current stage; joins. Idempotent.
+  // Finishes nothing new: running jobs are abandoned after their current
+  // stage and given back (queued again at once); joins. Idempotent.
   void stop();
 
-  // A run was stored complete (called by ingest after its commit).
+  // A run was stored complete (called by ingest after its commit): queues
+  // its analysis if the ingest has not (queue_run_analysis), wakes the
+  // workers.
   void notify_run_complete(const std::string& run_id);
 
   // PUT .../model: a new version; InputError (400) when the plant does not
@@ -125,5 +145,13 @@ class AnalysisService {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// The analysis job of a complete identification run against its pump's
+// current model and reference versions (and the reference job it depends
+// on), on `h` and inside its transaction if one is open (the ingest calls it
+// in the commit that makes the run complete). Idempotent; false when
+// nothing was queued (no model, not a complete identification run, queued
+// before). Throws InputError for an unknown run.
+bool queue_run_analysis(storage::Historian& h, const std::string& run_id);
 
 }  // namespace ambdiag::server

@@ -1,17 +1,18 @@
-// The in-process event bus behind GET /api/v1/events (server-sent events;
-// docs/service.md "Live updates"). Ingest, the analysis service and (later)
-// the alarms publish; each open stream subscribes.
+// The event bus behind GET /api/v1/events (server-sent events;
+// docs/service.md "Live updates"): each open stream subscribes.
 //
 // Every event has an id, a type ("run.new", "run.status", "job.done", ...)
-// and a JSON object. Ids increase by one per event and start at the wall
-// clock's microseconds when the bus is made, so they keep increasing across
-// a server restart: a client's Last-Event-ID from an earlier process is
-// older than anything held and it is told to reload.
+// and a JSON object. In a server the events come from the historian's
+// events table (EventTail, event_tail.h, publishes them with publish_stored):
+// the ids are the table's seqs, the same on every server on the database.
+// Published here directly (publish), ids increase by one per event and
+// start at the wall clock's microseconds when the bus is made.
 //
 // The last `ring_capacity` events are kept: a subscriber that names the id
-// it saw last gets the ones after it that are still held, or, when some
-// are gone, first a "reload" event (its id is the newest id, so a client
-// that reloads and keeps that id misses nothing after it).
+// it saw last gets the ones after it that are still held, in the ring or,
+// older, from the history (set_history: the table), or, when some are gone,
+// first a "reload" event (its id is the newest id, so a client that reloads
+// and keeps that id misses nothing after it).
 //
 // publish never waits for a subscriber: each has a bounded queue, and one
 // whose queue is full is dropped (its stream ends; the client reconnects
@@ -22,6 +23,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -48,6 +50,20 @@ class EventBus {
   // Thread-safe; returns the event's id. `data` should be an object; a
   // type with a line break is a programming error (std::logic_error).
   std::uint64_t publish(const std::string& type, const nlohmann::json& data);
+  // An event with its own id (a stored event's seq); ignored unless its id
+  // is above last_id(). Ids may jump (pruned or rolled-back seqs).
+  void publish_stored(Event e);
+  // Where the ids go on from: last_id() becomes `id` (only while nothing
+  // was published; std::logic_error otherwise). The tail sets the table's
+  // sequence before its first event.
+  void start_at(std::uint64_t id);
+  // The events after `after_id` that are older than the ring, read from
+  // where they are kept (the events table), oldest first, at most `max`;
+  // nullopt when `after_id` is not a point of that history (events after it
+  // pruned, or an id beyond its newest). Called without the bus' lock, from
+  // the subscribing thread.
+  using History = std::function<std::optional<std::vector<Event>>(std::uint64_t after_id, std::size_t max)>;
+  void set_history(History history, std::size_t max_replay = 10000);
 
   class Subscription {
    public:
@@ -80,7 +96,11 @@ class EventBus {
   std::uint64_t dropped_total() const;
 
  private:
+  void deliver(const Event& e);  // to every subscriber; mu_ held
+
   mutable std::mutex mu_;
+  History history_;
+  std::size_t max_replay_ = 0;
   std::size_t capacity_;
   std::uint64_t next_id_;
   std::deque<Event> ring_;
@@ -91,5 +111,9 @@ class EventBus {
 
 // The text/event-stream form of one event: "id: N\nevent: TYPE\ndata: JSON\n\n".
 std::string sse_frame(const Event& e);
+
+// An event's data as stored and sent: one line of JSON, invalid UTF-8 (in
+// a message from a file or an exception) replaced rather than refused.
+std::string event_data(const nlohmann::json& data);
 
 }  // namespace ambdiag::server

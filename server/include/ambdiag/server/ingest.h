@@ -38,7 +38,6 @@ class Historian;
 
 namespace ambdiag::server {
 
-class EventBus;
 class MetricsRegistry;
 
 struct IngestOptions {
@@ -60,15 +59,20 @@ struct IngestOptions {
   // Added to every commit: emulates a slow disk (bench_stream's memory check).
   std::chrono::milliseconds commit_delay{0};
   // Called from the commit thread after the commit that made a run
-  // complete (the analysis queues it); must be quick and must not throw.
+  // complete (wakes the analysis workers of this process); must be quick
+  // and must not throw.
   std::function<void(const std::string& run_id)> on_run_complete;
+  // Called inside the commit's transaction, on the ingest's connection, for
+  // each run the transaction makes complete: what it writes (the run's
+  // analysis job) commits with the run or not at all, so the analysis need
+  // not run in this process, nor be told. An InputError is logged and the
+  // run stored all the same; a StorageError fails the commit (the agents
+  // re-send). May be empty.
+  std::function<void(storage::Historian&, const std::string& run_id)> in_commit_run_complete;
   // Speak an older minor of the protocol (the version tests: a 1.1 server
   // acknowledges blocks and verdicts once committed, never as durable).
   // Unset: this build's (1.2, durable acknowledgements).
   std::optional<uint32_t> speak_protocol_minor;
-  // After each commit: "run.new" for a run first stored, "run.status" when
-  // a run became complete or incomplete (GET /api/v1/events). May be null.
-  EventBus* events = nullptr;
   // The ingest group's lease (ingest_group.h): called from the commit
   // thread inside each commit's transaction, before anything is written,
   // with the ingest's historian. False means this process no longer holds

@@ -72,9 +72,12 @@ struct RestOptions {
   // (HTTP requests, jobs, streams). Null: the server makes its own. One
   // RestServer per registry.
   MetricsRegistry* metrics = nullptr;
-  // GET /api/v1/events streams it. Null: the server makes its own (then
-  // only what is published to it directly shows).
+  // GET /api/v1/events streams it. Null: the server makes its own. The
+  // server publishes the historian's events table into it (every
+  // process' events, by their seq), polling every event_poll_ms; 0: no
+  // polling (then only what is published to it directly shows).
   EventBus* events = nullptr;
+  int event_poll_ms = 250;
   // Event streams open at once (each holds a worker thread; 503 beyond;
   // never more than half of worker_threads),
   // the heartbeat of an idle stream, and the events queued for a slow

@@ -1,5 +1,6 @@
 // The historian: every run a pump streamed (or a recording imported), kept in
-// one SQLite file (docs/storage.md has the schema, pragmas and migrations).
+// one SQLite file or in a PostgreSQL database (docs/storage.md has the
+// schema, pragmas and migrations, and "PostgreSQL" what differs there).
 //
 // A run is its header (the recording's run.json, stored verbatim) plus sample
 // chunks: chunk `seq` (0, 1, 2, ...) holds `n_frames` frames starting at frame
@@ -9,15 +10,18 @@
 // whole samples.f32 (core/checksum.h), and the historian checks both against
 // what it holds: the run is then `complete`, or `incomplete` with a reason.
 //
-// Threads: a Historian is one SQLite connection; use it from one thread at a
-// time. One writer (Mode::write) per file; readers (Mode::read) open their own
-// connection each, in any thread or process. WAL lets readers run beside the
-// writer: a reader sees the last committed state and never blocks the writer.
+// Threads: a Historian is one database connection; use it from one thread at
+// a time. SQLite: one writer (Mode::write) per file; readers (Mode::read) open
+// their own connection each, in any thread or process. WAL lets readers run
+// beside the writer: a reader sees the last committed state and never blocks
+// the writer. PostgreSQL: any number of writers and readers, in any number
+// of processes; each write call takes the locks its checks need.
 //
 // Errors: bad input (unknown run, wrong chunk size, conflicting header or
-// chunk, a file that is not an ambdiag historian or is newer than this
-// program) throws ambdiag::InputError naming what is wrong; nothing of a
-// refused call is stored. Disk and SQLite failures throw StorageError.
+// chunk, a file or database that is not an ambdiag historian or is newer
+// than this program, a PostgreSQL server that cannot be reached or refuses
+// the login) throws ambdiag::InputError naming what is wrong; nothing of a
+// refused call is stored. Disk and database failures throw StorageError.
 #pragma once
 
 #include <chrono>
@@ -34,6 +38,7 @@
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/alarms.h"
+#include "ambdiag/storage/events.h"
 #include "ambdiag/storage/ingest_lease.h"
 #include "ambdiag/storage/monitoring.h"
 #include "ambdiag/storage/retention.h"
@@ -158,22 +163,34 @@ struct CheckpointOptions {
   bool sync_commits = false;
 };
 
+// True for a PostgreSQL location: a libpq connection URI, postgresql://...
+// or postgres://... (Historian::open); anything else is an SQLite file path.
+bool is_postgres_location(const std::string& location);
+// The location for messages and logs: a URI's password (user:PASSWORD@ or
+// password=PASSWORD) replaced by ***; a file path as it is.
+std::string display_location(const std::string& location);
+
 class Historian {
  public:
   enum class Mode {
-    write,  // creates the file if missing and migrates the schema
-    read    // the file must exist with the current schema; writes refused
+    write,  // creates the file (or the schema in the database) if missing and migrates it
+    read    // the file or schema must exist at the current version; writes refused
   };
-  // Throws InputError if the file is not an SQLite database, not an ambdiag
-  // historian, or has a newer schema than this program knows.
-  static Historian open(const std::string& path, Mode mode = Mode::write);
+  // `location`: an SQLite file path, or a PostgreSQL connection URI
+  // (is_postgres_location), whose tables go in the first schema of its
+  // search_path (public unless options=-csearch_path%3D... says otherwise).
+  // Throws InputError if the file is not an SQLite database, the server
+  // cannot be reached or refuses the login, or the file or database is not
+  // an ambdiag historian or has a newer schema than this program knows;
+  // messages name the location (display_location).
+  static Historian open(const std::string& location, Mode mode = Mode::write);
 
   Historian(Historian&&) noexcept;
   Historian& operator=(Historian&&) noexcept;
   ~Historian();
 
   static int schema_version();  // the version this program writes
-  const std::string& path() const;
+  const std::string& path() const;  // the location given to open()
 
   // --- writing (Mode::write) ---
   // Registers the pump if new and the run as `receiving`. Idempotent: the
@@ -229,7 +246,10 @@ class Historian {
   // connection of their own: commits no longer wait for them. Started after
   // every `trigger_pages` of log; if the thread falls behind, the writer
   // checkpoints itself at 16 x that, so the log stays bounded. Stops with
-  // the Historian. Call once, on a Mode::write historian.
+  // the Historian. Call once, on a Mode::write historian. PostgreSQL: the
+  // server checkpoints itself and a commit is durable when it returns
+  // (synchronous_commit on); this only starts the commit numbers below,
+  // each commit durable at once (the options are not used).
   void checkpoint_in_background(int trigger_pages = 1000);
   void checkpoint_in_background(const CheckpointOptions& opt);
   CheckpointStats checkpoint_stats() const;  // zeros when not started
@@ -272,15 +292,26 @@ class Historian {
                                             std::optional<std::int64_t> depends_on = std::nullopt);
   // The oldest queued job whose dependency is done (a job depending on a
   // failed or cancelled job fails with that reason instead), now running
-  // under `worker` with attempts + 1. kinds: only these kinds (empty: any).
-  std::optional<Job> claim_job(const std::string& worker, const std::vector<std::string>& kinds = {});
-  // Progress of the running attempt; false (nothing changed) when the job
-  // is no longer running that attempt.
+  // under `worker` with attempts + 1 and a lease until now + `lease`.
+  // kinds: only these kinds (empty: any).
+  //
+  // An attempt **holds** its job while the job is `running` with that
+  // attempt number and its lease has not expired (lease_expires_at > now at
+  // the time of the write). Every write of an attempt (progress, renewal,
+  // finish, fail) is fenced by that; once its lease has expired, the attempt
+  // never holds the job again, even before anyone requeued or claimed it.
+  std::optional<Job> claim_job(const std::string& worker, const std::vector<std::string>& kinds = {},
+                               std::chrono::milliseconds lease = kDefaultJobLease);
+  // The holding attempt's lease, now until now + `lease`; false (nothing
+  // changed) when the attempt no longer holds the job.
+  bool renew_job_lease(std::int64_t job_id, int attempt, std::chrono::milliseconds lease = kDefaultJobLease);
+  // Progress of the holding attempt; false (nothing changed) when the
+  // attempt no longer holds the job.
   bool set_job_progress(std::int64_t job_id, int attempt, double progress);
   // The attempt's result and files, stored in one transaction with the
   // status `done`. False, storing nothing, when that attempt no longer
-  // holds the job (requeued, cancelled, another attempt): a result is
-  // stored once. `series`: the values the result gives the pump's trend
+  // holds the job (lease expired, requeued, cancelled, another attempt): a
+  // result is stored once. `series`: the values the result gives the pump's trend
   // series (analysis jobs of a run only; ignored for other kinds), kept in
   // the same transaction and replacing the run's points of any older
   // analysis job (trends.h). Throws InputError naming a series with an
@@ -289,10 +320,23 @@ class Historian {
                   const std::vector<JobArtifact>& artifacts = {},
                   const std::optional<std::vector<SeriesValue>>& series = std::nullopt);
   bool fail_job(std::int64_t job_id, int attempt, const std::string& error);
-  // Jobs left `running` (a server that died): `queued` again, or `failed`
-  // ("gave up after N attempts") once they have had max_attempts claims.
+  // The holding attempt gives its job back unfinished (its process stops):
+  // `queued` again at once, attempts kept; false when it no longer held it.
+  bool release_job(std::int64_t job_id, int attempt);
+  // Every `running` job (one server on the file, at its start: whatever
+  // runs was left by its dead predecessor): `queued` again, or `failed`
+  // ("gave up after N attempts") once it has had max_attempts claims.
   // Returns how many were queued again.
   int requeue_running_jobs(int max_attempts = 3);
+  // The `running` jobs whose lease has expired (their worker died or
+  // stalled; a job without a lease, left by a program before schema v8,
+  // counts as expired): `queued` again, attempts kept (the next claim is a
+  // new attempt), or `failed` once they have had max_attempts claims. Safe
+  // beside live workers of other processes: their leases have not expired.
+  struct Requeued {
+    int requeued = 0, failed = 0;
+  };
+  Requeued requeue_expired_jobs(int max_attempts = 3);
   // Queued jobs of the pump and kind whose model or reference version is
   // older than given: `cancelled` (superseded). Returns how many.
   int cancel_superseded_jobs(const std::string& pump_id, const std::string& kind, int model_version,
@@ -307,6 +351,24 @@ class Historian {
   // A done job's file, nullopt when it has none of that name.
   std::optional<JobArtifact> find_artifact(std::int64_t job_id, const std::string& name);
   std::vector<std::string> list_artifacts(std::int64_t job_id);
+
+  // --- events (events.h; historian_events.cc) ---
+  // Appends an event (GET /api/v1/events on every server); inside a
+  // WriteBatch it commits with what it announces, or not at all. Returns its
+  // seq. Keeps the table bounded (events.h: kEventsKeepRows, kEventsKeep).
+  std::int64_t append_event(const std::string& type, const std::string& pump_id, const std::string& data_json);
+  // The events after `after_seq`, oldest first, at most `limit` (>= 1).
+  std::vector<StoredEvent> events_after(std::int64_t after_seq, int limit);
+  // The newest `limit` events held, oldest first.
+  std::vector<StoredEvent> recent_events(int limit);
+  // The newest seq the table ever gave (0 before schema v8's first writer):
+  // not lowered by pruning, so a tail that starts here misses nothing new.
+  std::int64_t last_event_seq();
+  // The oldest seq still held; nullopt when the table is empty.
+  std::optional<std::int64_t> first_event_seq();
+  // Deletes all but the newest `keep_rows` events and those older than
+  // `older_than` (ISO 8601 UTC). Returns how many went.
+  int prune_events(std::int64_t keep_rows, const std::string& older_than);
 
   // --- trend series (trends.h; historian_trends.cc) ---
   // Points for the done analysis jobs whose run holds none of them (files

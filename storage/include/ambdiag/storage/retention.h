@@ -111,6 +111,7 @@ struct SweepReport {
   std::int64_t frf_runs = 0, frf_bytes = 0;
   std::int64_t monitoring_rows = 0;
   std::int64_t pumps = 0;         // pumps looked at
+  std::int64_t partitions = 0;    // PostgreSQL: day partitions of sample_chunks dropped whole
   std::int64_t transactions = 0;  // write transactions that dropped something
   double transactions_s = 0;      // their time, from BEGIN IMMEDIATE granted to COMMIT
   double longest_transaction_s = 0;  // the longest a writer (ingest) could have waited for the sweep
@@ -118,7 +119,7 @@ struct SweepReport {
   std::vector<std::string> errors;  // pumps whose stored policy did not read (the defaults were used)
 };
 // {"dry_run", "skipped"?, "stopped", "pumps", "samples": {"runs", "bytes"},
-//  "frf": {"runs", "bytes"}, "monitoring_rows", "transactions",
+//  "frf": {"runs", "bytes"}, "monitoring_rows", "partitions", "transactions",
 //  "transactions_s", "longest_transaction_s", "seconds", "errors",
 //  "runs"?: [{"run_id", "pump_id", "what", "bytes", "reason"}]}
 nlohmann::json to_json(const SweepReport& r, bool with_runs);

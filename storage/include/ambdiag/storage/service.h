@@ -6,6 +6,7 @@
 // storage/, so another backend (PostgreSQL) plugs in behind the same calls.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -58,7 +59,13 @@ struct Job {
   std::optional<std::string> error;
   std::optional<std::string> result_json;  // done jobs
   std::string worker;     // who holds the running attempt
+  // While running: until when the attempt holds the job (server clock, ISO
+  // 8601 UTC with milliseconds); nullopt otherwise.
+  std::optional<std::string> lease_expires_at;
 };
+
+// How long a claim holds a job without a renewal (`ambdiag serve --job-lease`).
+inline constexpr std::chrono::milliseconds kDefaultJobLease{10000};
 
 // A file a job produced (FRF with sigma, SVG plots, a learnt reference),
 // stored with its result in the same transaction.

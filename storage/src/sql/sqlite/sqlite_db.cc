@@ -1,4 +1,4 @@
-#include "sqlite_db.h"
+#include "sql/sqlite/sqlite_db.h"
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
@@ -57,48 +57,50 @@ Db::~Db() {
 
 void Db::exec(const char* sql, const char* what) { check(sqlite3_exec(db_, sql, nullptr, nullptr, nullptr), what); }
 
-Stmt::Stmt(const Db& db, const char* sql) : db_(&db) {
+std::unique_ptr<detail::Stmt> Db::prepare(const char* sql, Fetch) { return std::make_unique<SqliteStmt>(*this, sql); }
+
+SqliteStmt::SqliteStmt(const Db& db, const char* sql) : db_(&db) {
   db.check(sqlite3_prepare_v3(db.get(), sql, -1, SQLITE_PREPARE_PERSISTENT, &s_, nullptr), "prepare");
 }
 
-Stmt::~Stmt() {
+SqliteStmt::~SqliteStmt() {
   if (s_) sqlite3_finalize(s_);
 }
 
-Stmt& Stmt::reset() {
+SqliteStmt& SqliteStmt::reset() {
   sqlite3_reset(s_);  // returns the last step's error, already reported by step()
   sqlite3_clear_bindings(s_);
   return *this;
 }
 
-Stmt& Stmt::bind(int i, std::int64_t v) {
+SqliteStmt& SqliteStmt::bind(int i, std::int64_t v) {
   db_->check(sqlite3_bind_int64(s_, i, v), "bind");
   return *this;
 }
 
-Stmt& Stmt::bind(int i, double v) {
+SqliteStmt& SqliteStmt::bind(int i, double v) {
   db_->check(sqlite3_bind_double(s_, i, v), "bind");
   return *this;
 }
 
-Stmt& Stmt::bind(int i, std::string_view v) {
+SqliteStmt& SqliteStmt::bind(int i, std::string_view v) {
   db_->check(sqlite3_bind_text64(s_, i, v.data(), v.size(), SQLITE_STATIC, SQLITE_UTF8), "bind");
   return *this;
 }
 
-Stmt& Stmt::bind_blob(int i, std::span<const std::uint8_t> v) {
+SqliteStmt& SqliteStmt::bind_blob(int i, std::span<const std::uint8_t> v) {
   // A zero-length blob must still be a blob, not NULL.
   static const std::uint8_t kEmpty = 0;
   db_->check(sqlite3_bind_blob64(s_, i, v.empty() ? &kEmpty : v.data(), v.size(), SQLITE_STATIC), "bind");
   return *this;
 }
 
-Stmt& Stmt::bind_null(int i) {
+SqliteStmt& SqliteStmt::bind_null(int i) {
   db_->check(sqlite3_bind_null(s_, i), "bind");
   return *this;
 }
 
-bool Stmt::step() {
+bool SqliteStmt::step() {
   const int rc = sqlite3_step(s_);
   if (rc == SQLITE_ROW) return true;
   if (rc == SQLITE_DONE) return false;
@@ -107,53 +109,23 @@ bool Stmt::step() {
   return false;
 }
 
-std::string Stmt::col_text(int i) const {
+void SqliteStmt::send() {
+  while (step()) {
+  }
+  changes_.push_back(db_->changes());
+  sqlite3_reset(s_);  // the bindings stay for the caller to change
+}
+
+std::string SqliteStmt::col_text(int i) const {
   const auto* p = sqlite3_column_text(s_, i);
   const int n = sqlite3_column_bytes(s_, i);
   return p ? std::string(reinterpret_cast<const char*>(p), static_cast<size_t>(n)) : std::string();
 }
 
-std::optional<std::int64_t> Stmt::col_opt_int(int i) const {
-  if (col_null(i)) return std::nullopt;
-  return col_int(i);
-}
-
-std::optional<std::string> Stmt::col_opt_text(int i) const {
-  if (col_null(i)) return std::nullopt;
-  return col_text(i);
-}
-
-std::span<const std::uint8_t> Stmt::col_blob(int i) const {
+std::span<const std::uint8_t> SqliteStmt::col_blob(int i) const {
   const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(s_, i));
   const int n = sqlite3_column_bytes(s_, i);
   return {p, p ? static_cast<size_t>(n) : 0};
-}
-
-Transaction::Transaction(Db& db, Kind kind) : db_(&db) {
-  if (db.in_transaction()) {
-    if (kind == Kind::read) return;  // joins the outer one
-    db.exec("SAVEPOINT ambdiag_nested", "savepoint");
-    owns_ = savepoint_ = true;
-    return;
-  }
-  db.exec(kind == Kind::write ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
-  owns_ = true;
-}
-
-Transaction::~Transaction() {
-  if (!owns_) return;
-  // No throw from a destructor. A savepoint's rollback fails harmlessly if
-  // SQLite already rolled back the whole transaction (I/O error, disk full).
-  if (savepoint_)
-    sqlite3_exec(db_->get(), "ROLLBACK TO ambdiag_nested; RELEASE ambdiag_nested", nullptr, nullptr, nullptr);
-  else
-    sqlite3_exec(db_->get(), "ROLLBACK", nullptr, nullptr, nullptr);
-}
-
-void Transaction::commit() {
-  if (!owns_) return;
-  db_->exec(savepoint_ ? "RELEASE ambdiag_nested" : "COMMIT", "commit");
-  owns_ = false;
 }
 
 }  // namespace ambdiag::storage::detail
