@@ -4,10 +4,13 @@
 // reference run, REST says so (the run listed, 410 for its samples); a new
 // model analyses that run again from the FRF its analysis kept; once the FRF
 // is dropped too, the next analysis fails naming retention; the reference
-// runs keep everything; /metrics counts what was dropped.
+// runs keep everything; /metrics counts what was dropped. On PostgreSQL
+// with --parts: only the analysis part sweeps.
+#include <csignal>
 #include <fstream>
 
 #include "ambdiag/core/io_util.h"
+#include "pg_cluster.h"
 #include "service_fixture.h"
 
 namespace ambdiag::testing {
@@ -122,6 +125,36 @@ TEST_F(RetentionServiceTest, ABadRetentionFileStopsTheStartNamingTheKey) {
             (dir / "bad.log").string());
   EXPECT_EQ(p.wait(30s), 3) << p.log();
   EXPECT_NE(p.log().find("samples_days: must be a number of days"), std::string::npos) << p.log();
+}
+
+// Two servers on one PostgreSQL database: ingest and REST in one, the
+// analysis in the other. Only the analysis part sweeps (a sweep option to
+// a process without it is refused); its sweep drops what the REST
+// process then shows as dropped.
+TEST_F(RetentionServiceTest, OnPostgreSQLWithPartsTheAnalysisPartSweeps) {
+  const auto location = postgres_test_location();
+  if (!location) GTEST_SKIP() << "AMBDIAG_NO_POSTGRES=1: the PostgreSQL backend is not tested";
+  db = *location;
+  const auto defaults = dir / "retention.json";
+  std::ofstream(defaults) << R"({"samples_days": 0})";
+  Process refused({AMBDIAG_CLI, "serve", "--db", *location, "--parts", "rest", "--http-port", "0", "--retention-interval", "1"},
+                  env, (dir / "refused.log").string());
+  EXPECT_EQ(refused.wait(30s), 2) << refused.log();
+  EXPECT_NE(refused.log().find("--retention-interval: this process runs no analysis"), std::string::npos) << refused.log();
+
+  start_service({"--parts", "ingest,rest", "--retention", defaults.string()});
+  Process analysis({AMBDIAG_CLI, "serve", "--db", *location, "--parts", "analysis", "--instance", "worker-1", "--retention",
+                    defaults.string(), "--retention-interval", "0.5"},
+                   env, (dir / "analysis.log").string());
+  put_model();
+  ASSERT_TRUE(replay(data_file("reference_pump/run_ref_1")));
+  // Its analysis ends first (a queued or running job keeps the run).
+  const auto run = wait_for(run_url(kRefRun), [](const nlohmann::json& j) { return j["samples"] == "dropped"; }, 90s);
+  EXPECT_EQ(run["samples_dropped_bytes"], 6553600);
+  EXPECT_EQ(get(run_url(kRefRun) + "/samples.f32")->status, 410);
+  EXPECT_TRUE(json_of(client().Get("/api/v1/health"))["retention"].is_null()) << "the ingest,rest process never swept";
+  analysis.signal(SIGTERM);
+  EXPECT_EQ(analysis.wait(30s), 0) << analysis.log();
 }
 
 }  // namespace
