@@ -155,9 +155,8 @@ class Sweep {
   // runs is kept (every run in it is past its pump's samples_days, not
   // needed, not receiving, or already dropped) is dropped whole, its runs
   // marked dropped with their bytes in the same transaction. That
-  // transaction locks sample_chunks first (DROP needs it exclusively, and
-  // taking it first leaves no lock to wait for in a circle with ingest), so
-  // it waits for ingest's open transactions and holds new ones back for its
+  // transaction holds sample_chunks and runs exclusively (DROP needs both,
+  // runs for the foreign key), so new ingest transactions wait for its
   // length. A partition with a kept run stays; its other runs go row by
   // row in pump().
   void drop_partitions(const std::map<std::string, RetentionPolicy>& policies) {
@@ -170,27 +169,45 @@ class Sweep {
       if (!go_on()) return;
       if (!partition_droppable(part, cutoff)) continue;
       std::vector<SweptRun> dropped;
-      try {
-        write([&] {
-          impl_.db.exec("LOCK TABLE sample_chunks IN ACCESS EXCLUSIVE MODE", "lock sample_chunks");
-          if (!partition_droppable(part, cutoff)) return false;  // changed since the plan
-          const std::string sql =
-              "WITH b AS (SELECT run_id, CAST(sum(length(data)) AS bigint) AS n FROM " + part.name +
-              " GROUP BY run_id) UPDATE runs SET samples_state = 'dropped', samples_dropped_at = "
-              "coalesce(samples_dropped_at, ?), samples_dropped_bytes = samples_dropped_bytes + coalesce((SELECT n FROM "
-              "b WHERE b.run_id = runs.run_id), 0) WHERE samples_state <> 'dropped' AND (created_at >= ? AND created_at "
-              "< ? OR run_id IN (SELECT run_id FROM b)) RETURNING run_id, pump_id, coalesce((SELECT n FROM b WHERE "
-              "b.run_id = runs.run_id), 0)";
-          auto mark = impl_.db.prepare(sql.c_str(), Fetch::all);
-          const std::string at = utc_ms(SystemClock::now());  // bound by reference until the step
-          mark->bind(1, at).bind(2, part.from).bind(3, part.to);
-          while (mark->step()) dropped.push_back({mark->col_text(0), mark->col_text(1), "samples", mark->col_int(2), "age"});
-          mark.reset();
-          impl_.db.exec(("DROP TABLE " + part.name).c_str(), "drop a day partition of sample_chunks");
-          return true;
-        });
-      } catch (const StorageError& e) {  // e.g. the lock not granted within lock_timeout: row by row instead
-        r_.errors.push_back("partition " + part.name + " not dropped: " + e.what());
+      bool done = false;
+      std::string why;
+      // The locks are tried, never waited for: ingest holds runs and
+      // sample_chunks in either order (a batch updates one run, then
+      // inserts the next run's chunks), so a sweep waiting for one while
+      // holding the other could deadlock with it. Tried again every 20 ms
+      // for up to 5 s, then left to the next sweep.
+      for (const auto until = SteadyClock::now() + std::chrono::seconds(5); !done;) {
+        try {
+          dropped.clear();
+          done = write([&] {
+            impl_.db.exec("LOCK TABLE sample_chunks IN ACCESS EXCLUSIVE MODE NOWAIT", "lock sample_chunks");
+            impl_.db.exec("LOCK TABLE runs IN ACCESS EXCLUSIVE MODE NOWAIT", "lock runs");  // DROP's foreign key
+            if (!partition_droppable(part, cutoff)) return false;  // changed since the plan
+            const std::string sql =
+                "WITH b AS (SELECT run_id, CAST(sum(length(data)) AS bigint) AS n FROM " + part.name +
+                " GROUP BY run_id) UPDATE runs SET samples_state = 'dropped', samples_dropped_at = "
+                "coalesce(samples_dropped_at, ?), samples_dropped_bytes = samples_dropped_bytes + coalesce((SELECT n "
+                "FROM b WHERE b.run_id = runs.run_id), 0) WHERE samples_state <> 'dropped' AND (created_at >= ? AND "
+                "created_at < ? OR run_id IN (SELECT run_id FROM b)) RETURNING run_id, pump_id, coalesce((SELECT n FROM "
+                "b WHERE b.run_id = runs.run_id), 0)";
+            auto mark = impl_.db.prepare(sql.c_str(), Fetch::all);
+            const std::string at = utc_ms(SystemClock::now());  // bound by reference until the step
+            mark->bind(1, at).bind(2, part.from).bind(3, part.to);
+            while (mark->step()) dropped.push_back({mark->col_text(0), mark->col_text(1), "samples", mark->col_int(2), "age"});
+            mark.reset();
+            impl_.db.exec(("DROP TABLE " + part.name).c_str(), "drop a day partition of sample_chunks");
+            return true;
+          });
+          if (!done) break;  // a run of it is kept now
+        } catch (const StorageError& e) {
+          why = e.what();
+          const bool busy = why.find("55P03") != std::string::npos;  // lock_not_available
+          if (!busy || SteadyClock::now() > until || !go_on()) break;
+          std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        }
+      }
+      if (!done) {
+        if (!why.empty()) r_.errors.push_back("partition " + part.name + " not dropped (left to the next sweep): " + why);
         continue;
       }
       ++r_.partitions;
