@@ -65,7 +65,7 @@ int run_serve(const std::vector<std::string>& argv) {
                                    "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within",
                                    "--speak-protocol", "--web-dir", "--parts", "--instance", "--job-lease"};
   options.insert(std::begin(kIngestGroupOptionNames), std::end(kIngestGroupOptionNames));
-  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
+  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read", "--bench-no-event-notify"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -165,6 +165,7 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.port = http_port;
   rest_opt.analysis = analysis ? &*analysis : nullptr;
   rest_opt.anonymous_read = args.flag("--anonymous-read");
+  rest_opt.event_notify = !args.flag("--bench-no-event-notify");  // the poll alone: to measure what NOTIFY saves
   rest_opt.tls_cert_path = args.option("--tls-cert").value_or("");
   rest_opt.tls_key_path = args.option("--tls-key").value_or("");
   if (rest_opt.tls_cert_path.empty() != rest_opt.tls_key_path.empty())
@@ -303,6 +304,8 @@ std::vector<Command> serve_commands() {
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"
+           "--bench-no-event-notify: PostgreSQL: the event streams poll the events table every 250 ms only, without\n"
+           "  LISTEN/NOTIFY (for comparison; benchmarks only).\n"
            "--durability checkpoint|full: how blocks become durable before agents may delete them (protocol 1.2):\n"
            "  checkpoint (default): a checkpoint syncs the log, at the latest --durable-within S seconds (default 1)\n"
            "  after the commit; full: synchronous=FULL, every commit fsyncs the log (docs/storage.md, Durability).\n"

@@ -83,7 +83,8 @@ struct RestServer::Impl {
         metrics(opt.metrics ? *opt.metrics : *own_metrics),
         events(opt.events ? *opt.events : *own_events),
         tail(opt.event_poll_ms > 0 ? std::make_unique<detail::EventTail>(opt.db_path, events,
-                                                                          std::chrono::milliseconds(opt.event_poll_ms))
+                                                                          std::chrono::milliseconds(opt.event_poll_ms),
+                                                                          opt.event_notify)
                                    : nullptr),
         service{routes, metrics, events},
         limiter(opt.rate_limit_per_s, opt.rate_limit_burst),
@@ -144,6 +145,13 @@ struct RestServer::Impl {
                             MetricType::counter, [this] { return static_cast<double>(events.dropped_total()); });
     metrics.collected_value("ambdiag_events_last_id", "The id of the newest event published (ids grow by one per event).",
                             MetricType::gauge, [this] { return static_cast<double>(events.last_id()); });
+    if (!tail) return;
+    metrics.collected_value("ambdiag_event_tail_polls_total",
+                            "Reads of the events table (each period, and at each notification on PostgreSQL).",
+                            MetricType::counter, [this] { return static_cast<double>(tail->polls()); });
+    metrics.collected_value("ambdiag_event_notifications_total",
+                            "PostgreSQL notifications of committed events received (0 on SQLite: the poll alone).",
+                            MetricType::counter, [this] { return static_cast<double>(tail->notifications()); });
   }
 
   void count(const std::string& method, const std::string& route, int status, std::chrono::steady_clock::time_point t0) {

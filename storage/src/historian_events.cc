@@ -1,10 +1,12 @@
 // Historian: the events table (schema v8; events.h). Appended inside the
 // caller's transaction (a WriteBatch: the event commits with what it
-// announces), read by seq by each REST process' tail.
+// announces), read by seq by each REST process' tail, which PostgreSQL's
+// NOTIFY wakes at the commit (event_listener.h).
 #include <algorithm>
 #include <chrono>
 
 #include "ambdiag/storage/historian.h"
+#include "events_channel.h"
 #include "historian_impl.h"
 
 namespace ambdiag::storage {
@@ -37,6 +39,11 @@ std::int64_t Historian::append_event(const std::string& type, const std::string&
   if (!ins.step()) throw StorageError("append_event: the insert returned no seq");
   const std::int64_t seq = ins.col_int(0);
   ins.reset();
+  // PostgreSQL: wakes every REST process' tail (EventListener) when this
+  // transaction commits, not at its next poll; a rolled-back append sends
+  // nothing. The payload is the seq, for whoever watches the channel.
+  if (impl_->dialect() == Dialect::postgres)
+    impl_->stmt("SELECT pg_notify(" AMBDIAG_EVENTS_CHANNEL_SQL ", CAST(CAST(? AS bigint) AS text))").bind(1, seq).run();
   // Bounded: one event in kEventsPruneEvery pays for the pruning (two
   // index walks from the oldest end), so an append stays one insert.
   if (seq % kEventsPruneEvery == 0)

@@ -71,9 +71,13 @@ struct RestOptions {
   // GET /api/v1/events streams it. Null: the server makes its own. The
   // server publishes the historian's events table into it (every
   // process' events, by their seq), polling every event_poll_ms; 0: no
-  // polling (then only what is published to it directly shows).
+  // polling (then only what is published to it directly shows). On
+  // PostgreSQL, with event_notify, a connection LISTENs for the NOTIFY of
+  // each append and polls at once: the period is then the fallback
+  // (false: the period alone, for measuring it; docs/benchmarks.md).
   EventBus* events = nullptr;
   int event_poll_ms = 250;
+  bool event_notify = true;
   // Event streams open at once (each holds a worker thread; 503 beyond;
   // never more than half of worker_threads),
   // the heartbeat of an idle stream, and the events queued for a slow
