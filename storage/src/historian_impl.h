@@ -60,7 +60,7 @@ struct Historian::Impl {
   // "Lock order"): `events` is taken last, only by write_events, after
   // which a transaction takes no other lock; a WriteBatch's appends wait
   // for its commit.
-  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6 };
+  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6, pump_alarms = 7 };
   // Inside a write transaction: waits until no other transaction holds the
   // key's lock, and holds it until this one ends. SQLite: nothing to do,
   // BEGIN IMMEDIATE already made this the only writer of the file.

@@ -431,6 +431,14 @@ class Historian {
   // InputError when an open alarm of the same pump and rule exists (a second
   // one while active) or an event names no alarm; nothing is stored then.
   void apply_alarm_changes(AlarmChanges& changes);
+  // Inside a WriteBatch, before reading what an evaluation or an operator's
+  // action of the pump's alarms depends on (its alarms, memories, cursor):
+  // waits until no other transaction holds the pump's alarms and holds
+  // them until this one ends, so two servers evaluating one pump take
+  // turns and the second sees the first's result (docs/storage.md "What
+  // guards each write"). PostgreSQL: an advisory lock on the pump; SQLite:
+  // nothing (its one writer).
+  void lock_pump_alarms(const std::string& pump_id);
   std::optional<AlarmRecord> find_alarm(std::int64_t alarm_id);
   // Newest first.
   std::vector<AlarmRecord> list_alarms(const AlarmFilter& filter);
