@@ -52,6 +52,12 @@ std::string method_label(const std::string& m) {
 
 constexpr const char* kUnmatched = "unmatched";  // the route label of a path no route has
 
+int reader_count(const RestOptions& o) {
+  const int workers = std::max(1, o.worker_threads);
+  if (o.db_readers > 0) return std::min(o.db_readers, workers);
+  return storage::is_postgres_location(o.db_path) ? std::min(RestOptions::kDefaultPgReaders, workers) : workers;
+}
+
 }  // namespace
 
 struct RestServer::Impl {
@@ -77,7 +83,7 @@ struct RestServer::Impl {
 
   explicit Impl(RestOptions o)
       : opt(std::move(o)),
-        pool(opt.db_path, std::max(1, opt.worker_threads)),
+        pool(opt.db_path, reader_count(opt)),
         own_metrics(opt.metrics ? nullptr : std::make_unique<MetricsRegistry>()),
         own_events(opt.events ? nullptr : std::make_unique<EventBus>()),
         metrics(opt.metrics ? *opt.metrics : *own_metrics),

@@ -49,6 +49,12 @@ struct RestOptions {
   // the pool bounds the clients served at once; idle keep-alive connections
   // are closed after keep_alive_timeout_s so they do not starve new clients.
   int worker_threads = 64;
+  // Read connections to the historian the workers share (a request waits
+  // for one while all are lent out). 0: one per worker thread on SQLite (a
+  // file handle each), kDefaultPgReaders on PostgreSQL, where each is a
+  // server process (docs/deployment.md "Connections"). At most worker_threads.
+  int db_readers = 0;
+  static constexpr int kDefaultPgReaders = 16;
   int keep_alive_timeout_s = 2;
   int keep_alive_max_requests = 1000;
   // Extra keys merged into GET /api/v1/health (e.g. ingest counters). Called
