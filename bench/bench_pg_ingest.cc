@@ -28,6 +28,7 @@
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/storage/historian.h"
 #include "bench_chunks.h"
+#include "bench_pg.h"
 #include "bench_util.h"
 
 namespace {
@@ -40,26 +41,10 @@ using ambdiag::bench::kChunkBytes;
 using ambdiag::bench::kFramesPerChunk;
 using ambdiag::bench::run_json;
 
-[[noreturn]] void die(const std::string& what) {
-  std::fprintf(stderr, "bench_pg_ingest: %s\n", what.c_str());
-  std::exit(1);
-}
+[[noreturn]] void die(const std::string& what) { ambdiag::bench::pg_die("bench_pg_ingest", what); }
 
-struct Conn {
-  PGconn* c;
-  explicit Conn(const std::string& uri) : c(PQconnectdb(uri.c_str())) {
-    if (PQstatus(c) != CONNECTION_OK) die(std::string("connect: ") + PQerrorMessage(c));
-    PQsetNoticeProcessor(c, [](void*, const char*) {}, nullptr);
-  }
-  ~Conn() { PQfinish(c); }
-  std::string exec(const std::string& sql) const {
-    PGresult* r = PQexec(c, sql.c_str());
-    const auto st = PQresultStatus(r);
-    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) die(sql.substr(0, 60) + ": " + PQresultErrorMessage(r));
-    std::string v = st == PGRES_TUPLES_OK && PQntuples(r) > 0 ? PQgetvalue(r, 0, 0) : "";
-    PQclear(r);
-    return v;
-  }
+struct Conn : ambdiag::bench::PgConn {
+  explicit Conn(const std::string& uri) : PgConn("bench_pg_ingest", uri) {}
 };
 
 // CPU seconds of a process on this machine (utime + stime of /proc/PID/stat).
@@ -263,8 +248,7 @@ int main(int argc, char** argv) {
 
   admin.exec("DROP SCHEMA IF EXISTS ambdiag_bench_h CASCADE; CREATE SCHEMA ambdiag_bench_h");
   admin.exec("CHECKPOINT");
-  const std::string sep = uri.find('?') == std::string::npos ? "?" : "&";
-  const std::string location = uri + sep + "options=-csearch_path%3Dambdiag_bench_h&application_name=bench_pg_ingest";
+  const std::string location = ambdiag::bench::pg_schema_location(uri, "ambdiag_bench_h", "bench_pg_ingest");
   {
     auto h = Historian::open(location);  // creates the schema before the clock starts
   }

@@ -65,9 +65,9 @@ int run_serve(const std::vector<std::string>& argv) {
                                    "--workers", "--reference-runs", "--alpha", "--tls-cert", "--tls-key", "--rate-limit",
                                    "--rate-limit-burst", "--alarm-defaults", "--durability", "--durable-within",
                                    "--speak-protocol", "--web-dir", "--retention", "--retention-interval", "--parts",
-                                   "--instance", "--job-lease"};
+                                   "--instance", "--job-lease", "--db-readers"};
   options.insert(std::begin(kIngestGroupOptionNames), std::end(kIngestGroupOptionNames));
-  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read"});
+  const Args args(argv, options, {"--quiet", "--bench-inline-checkpoints", "--anonymous-read", "--bench-no-event-notify"});
   args.expect_positional(0, "");
   const auto db = args.option("--db");
   if (!db) throw UsageError("missing --db FILE");
@@ -80,6 +80,7 @@ int run_serve(const std::vector<std::string>& argv) {
       throw UsageError(std::string(option) + ": this process runs no " + part + " (--parts " + parts.text() + ")");
   };
   if (!parts.rest) not_run("--http-port", "rest");
+  if (!parts.rest) not_run("--db-readers", "rest");
   if (!parts.analysis) not_run("--workers", "analysis");
   if (!parts.analysis) not_run("--retention-interval", "analysis");
   if (parts.rest && !args.option("--http-port")) throw UsageError("missing --http-port N");
@@ -182,6 +183,8 @@ int run_serve(const std::vector<std::string>& argv) {
   rest_opt.analysis = analysis ? &*analysis : nullptr;
   rest_opt.retention = &retention;
   rest_opt.anonymous_read = args.flag("--anonymous-read");
+  rest_opt.db_readers = integer_in(args, "--db-readers", 1, 64, 0);  // 0 (absent): the backend's default
+  rest_opt.event_notify = !args.flag("--bench-no-event-notify");  // the poll alone: to measure what NOTIFY saves
   rest_opt.tls_cert_path = args.option("--tls-cert").value_or("");
   rest_opt.tls_key_path = args.option("--tls-key").value_or("");
   if (rest_opt.tls_cert_path.empty() != rest_opt.tls_key_path.empty())
@@ -287,7 +290,7 @@ std::vector<Command> serve_commands() {
            "                     [--anonymous-read] [--workers N] [--reference-runs N] [--alpha P]\n"
            "                     [--rate-limit N] [--rate-limit-burst B] [--alarm-defaults FILE] [--web-dir DIR]\n"
            "                     [--retention FILE] [--retention-interval S]\n"
-           "                     [--parts ingest,analysis,rest] [--instance NAME] [--job-lease S]\n"
+           "                     [--parts ingest,analysis,rest] [--instance NAME] [--job-lease S] [--db-readers N]\n"
            "\n"
            "Receives runs from every ambdiag-agent in DDS domain D (default 0), all partitions\n"
            "(sites) unless --partition is given, stores them in the historian FILE and serves\n"
@@ -331,6 +334,10 @@ std::vector<Command> serve_commands() {
            "--bench-commit-delay-ms N delays every commit (emulates a slow disk; benchmarks only).\n"
            "--bench-inline-checkpoints: SQLite's own checkpoints in the committing thread instead of the background\n"
            "  checkpoint thread (for comparison; benchmarks only).\n"
+           "--db-readers N: read connections the REST workers share (1..64; default one per worker, 64, on\n"
+           "  SQLite, 16 on PostgreSQL, where each is a server process: docs/deployment.md \"Connections\").\n"
+           "--bench-no-event-notify: PostgreSQL: the event streams poll the events table every 250 ms only, without\n"
+           "  LISTEN/NOTIFY (for comparison; benchmarks only).\n"
            "--durability checkpoint|full: how blocks become durable before agents may delete them (protocol 1.2):\n"
            "  checkpoint (default): a checkpoint syncs the log, at the latest --durable-within S seconds (default 1)\n"
            "  after the commit; full: synchronous=FULL, every commit fsyncs the log (docs/storage.md, Durability).\n"

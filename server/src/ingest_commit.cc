@@ -26,9 +26,9 @@ void log_line(bool verbose, const std::string& msg) {
   std::fputs(line.c_str(), stderr);
 }
 
-void Committer::reject(const std::string& reason, const std::string& run_id, const std::string& what) {
-  counters_.reject(reason);
-  log_line(opt_.verbose, "rejected (" + reason + ") run '" + run_id + "': " + what);
+void Committer::reject(Staged& st, const std::string& reason, const std::string& run_id, const std::string& what) {
+  st.rejected.push_back(reason);
+  st.log.push_back("rejected (" + reason + ") run '" + run_id + "': " + what);
 }
 
 Committer::Committer(storage::Historian& historian, const IngestOptions& opt, IngestCounters& counters,
@@ -94,7 +94,7 @@ void Committer::apply(BeginRun& w, Staged& st) {
                       event_data({{"run_id", w.header.run_id}, {"pump_id", w.header.pump_id}, {"kind", w.header.kind},
                                   {"started_at", w.header.started_at}, {"status", "receiving"}}));
   } catch (const InputError& e) {
-    reject("header", w.header.run_id, e.what());
+    reject(st, "header", w.header.run_id, e.what());
   }
 }
 
@@ -120,7 +120,7 @@ void Committer::apply(Blocks& w, Staged& st) {
         count(h_.put_chunks(w.run_id, std::span(&chunks[i], 1)), std::span(&chunks[i], 1));
         ok[i] = 1;
       } catch (const InputError& e) {
-        reject("conflict", w.run_id, e.what());
+        reject(st, "conflict", w.run_id, e.what());
       }
     }
   }
@@ -191,7 +191,7 @@ void Committer::apply(EndRun& w, Staged& st) {
     if (r.used_digest) ++st.from_digest;
     verdict(st, w.run_id, info ? info->pump_id : "", before, r.status, r.reason);
   } catch (const InputError& e) {
-    reject("run_end", w.run_id, e.what());
+    reject(st, "run_end", w.run_id, e.what());
     st.verdicts.push_back({w.run_id, -1, -1, ambdiag_stream_ACK_REJECTED, e.what()});
   }
 }
@@ -216,7 +216,7 @@ void Committer::apply(Monitoring& w, Staged& st) {
       st.monitoring_stored += r.stored;
       st.monitoring_duplicate += r.duplicates;
     } catch (const InputError& e) {
-      reject("monitoring", s.pump_id, e.what());
+      reject(st, "monitoring", s.pump_id, e.what());
     }
   }
 }
@@ -225,21 +225,30 @@ void Committer::commit(std::vector<Work>& batch) {
   if (fenced_) return;
   Staged st;
   try {
-    auto tx = h_.write_batch();
-    // First, in the same transaction: does this process still hold its
-    // ingest group? A holder paused past its lease and taken over must not
-    // store, and above all not acknowledge, from its stale view (e.g. its
-    // runs all look timed out after the pause).
-    if (opt_.fence && !opt_.fence(h_)) {
+    // A deadlock PostgreSQL broke (TransientError) rolled all of it back:
+    // the same batch again, from a fresh Staged (what the failed attempt
+    // noted was not committed). The items themselves are not changed by
+    // apply(), and the chains it reads (chains_) change only after a commit.
+    const bool committed = storage::retry_transient([&] {
+      st = Staged{};
+      auto tx = h_.write_batch();
+      // First, in the same transaction: does this process still hold its
+      // ingest group? A holder paused past its lease and taken over must not
+      // store, and above all not acknowledge, from its stale view (e.g. its
+      // runs all look timed out after the pause).
+      if (opt_.fence && !opt_.fence(h_)) return false;  // the batch rolls back with tx
+      for (auto& w : batch) std::visit([&](auto& item) { apply(item, st); }, w);
+      if (opt_.commit_delay.count() > 0) std::this_thread::sleep_for(opt_.commit_delay);
+      tx.commit();
+      return true;
+    });
+    if (!committed) {
       fenced_ = true;
       ++counters_.commits_fenced;
       log_line(true, "the ingest group was taken over by another server: this batch is rolled back, nothing of it "
                      "acknowledged; ingest stops here");
-      return;  // the batch rolls back with tx
+      return;
     }
-    for (auto& w : batch) std::visit([&](auto& item) { apply(item, st); }, w);
-    if (opt_.commit_delay.count() > 0) std::this_thread::sleep_for(opt_.commit_delay);
-    tx.commit();
   } catch (const storage::StorageError& e) {
     ++counters_.storage_errors;
     log_line(true, std::string("commit failed, nothing of this batch acknowledged (the agents re-send it): ") +
@@ -255,6 +264,7 @@ void Committer::commit(std::vector<Work>& batch) {
     else if (c.next_seq > 0)  // a run re-sent after its end starts no chain of its own
       chains_[run_id] = c;
   }
+  for (const auto& reason : st.rejected) counters_.reject(reason);
   counters_.headers += st.headers;
   counters_.blocks_stored += st.blocks_stored;
   counters_.blocks_duplicate += st.blocks_duplicate;

@@ -35,7 +35,8 @@ class Committer {
   // All of `batch` in one transaction. A refused item (conflicting chunk,
   // bad header, ...) is rejected and counted and the rest goes on; a
   // StorageError rolls everything back: counted, logged, nothing
-  // acknowledged. After the commit: acks of what is committed to 1.2
+  // acknowledged, but for a TransientError (PostgreSQL broke a deadlock),
+  // after which the batch is run again from the start (at most 5 times). After the commit: acks of what is committed to 1.2
   // agents at once (flow control); acks that say durable, and every
   // verdict, once the commit is durable.
   void commit(std::vector<Work>& batch);
@@ -63,6 +64,7 @@ class Committer {
     std::vector<Ack> verdicts;
     std::vector<std::string> log;
     std::vector<std::string> completed;  // runs that became complete in this batch
+    std::vector<std::string> rejected;   // the reasons of the items refused (counted at the commit)
     int64_t blocks_stored = 0, blocks_duplicate = 0, bytes_stored = 0, headers = 0, complete = 0, incomplete = 0,
             monitoring_stored = 0, monitoring_duplicate = 0, from_digest = 0;
     bool stream_progress = false;  // blocks stored or a run ended
@@ -76,7 +78,7 @@ class Committer {
   Chain& chain(Staged& st, const std::string& run_id);
   void verdict(Staged& st, const std::string& run_id, const std::string& pump_id, std::optional<storage::RunStatus> before,
                storage::RunStatus after, const std::string& reason);
-  void reject(const std::string& reason, const std::string& run_id, const std::string& what);
+  void reject(Staged& st, const std::string& reason, const std::string& run_id, const std::string& what);
   void send(const Ack& a);
   // The stored blocks as acks of seq ranges.
   static std::vector<Ack> ack_ranges(const std::string& run_id, std::vector<int64_t> seqs);

@@ -54,6 +54,12 @@ std::string method_label(const std::string& m) {
 
 constexpr const char* kUnmatched = "unmatched";  // the route label of a path no route has
 
+int reader_count(const RestOptions& o) {
+  const int workers = std::max(1, o.worker_threads);
+  if (o.db_readers > 0) return std::min(o.db_readers, workers);
+  return storage::is_postgres_location(o.db_path) ? std::min(RestOptions::kDefaultPgReaders, workers) : workers;
+}
+
 }  // namespace
 
 struct RestServer::Impl {
@@ -79,13 +85,14 @@ struct RestServer::Impl {
 
   explicit Impl(RestOptions o)
       : opt(std::move(o)),
-        pool(opt.db_path, std::max(1, opt.worker_threads)),
+        pool(opt.db_path, reader_count(opt)),
         own_metrics(opt.metrics ? nullptr : std::make_unique<MetricsRegistry>()),
         own_events(opt.events ? nullptr : std::make_unique<EventBus>()),
         metrics(opt.metrics ? *opt.metrics : *own_metrics),
         events(opt.events ? *opt.events : *own_events),
         tail(opt.event_poll_ms > 0 ? std::make_unique<detail::EventTail>(opt.db_path, events,
-                                                                          std::chrono::milliseconds(opt.event_poll_ms))
+                                                                          std::chrono::milliseconds(opt.event_poll_ms),
+                                                                          opt.event_notify)
                                    : nullptr),
         service{routes, metrics, events},
         limiter(opt.rate_limit_per_s, opt.rate_limit_burst),
@@ -147,6 +154,13 @@ struct RestServer::Impl {
                             MetricType::counter, [this] { return static_cast<double>(events.dropped_total()); });
     metrics.collected_value("ambdiag_events_last_id", "The id of the newest event published (ids grow by one per event).",
                             MetricType::gauge, [this] { return static_cast<double>(events.last_id()); });
+    if (!tail) return;
+    metrics.collected_value("ambdiag_event_tail_polls_total",
+                            "Reads of the events table (each period, and at each notification on PostgreSQL).",
+                            MetricType::counter, [this] { return static_cast<double>(tail->polls()); });
+    metrics.collected_value("ambdiag_event_notifications_total",
+                            "PostgreSQL notifications of committed events received (0 on SQLite: the poll alone).",
+                            MetricType::counter, [this] { return static_cast<double>(tail->notifications()); });
   }
 
   void count(const std::string& method, const std::string& route, int status, std::chrono::steady_clock::time_point t0) {

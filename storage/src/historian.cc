@@ -472,7 +472,9 @@ Historian::WriteBatch::WriteBatch(Historian* h) : h_(h) {
 }
 
 Historian::WriteBatch::~WriteBatch() {
-  if (h_) h_->impl_->batch_tx.reset();  // rolls back unless committed
+  if (!h_) return;
+  h_->impl_->batch_events.clear();
+  h_->impl_->batch_tx.reset();  // rolls back unless committed
 }
 
 void Historian::WriteBatch::commit() {
@@ -481,8 +483,13 @@ void Historian::WriteBatch::commit() {
   h_ = nullptr;
   struct Reset {  // the batch is over whether COMMIT succeeds or not
     Impl& i;
-    ~Reset() { i.batch_tx.reset(); }
+    ~Reset() {
+      i.batch_events.clear();
+      i.batch_tx.reset();
+    }
   } reset{impl};
+  // The batch's events last: the events' lock is the last one it takes.
+  if (!impl.batch_events.empty()) write_events(impl, impl.batch_events);
   impl.batch_tx->commit();
 }
 

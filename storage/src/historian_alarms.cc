@@ -112,6 +112,12 @@ std::optional<AlarmRulesVersion> Historian::find_alarm_rules(const std::string& 
   return v;
 }
 
+void Historian::lock_pump_alarms(const std::string& pump_id) {
+  impl_->require_writer("lock_pump_alarms");
+  if (!impl_->db.in_transaction()) throw std::logic_error("Historian::lock_pump_alarms outside a write transaction");
+  impl_->lock(Impl::LockSpace::pump_alarms, pump_id);
+}
+
 void Historian::apply_alarm_changes(AlarmChanges& c) {
   impl_->require_writer("apply_alarm_changes");
   for (const auto& [index, e] : c.events)

@@ -1,10 +1,12 @@
 // Historian: the events table (schema v8; events.h). Appended inside the
 // caller's transaction (a WriteBatch: the event commits with what it
-// announces), read by seq by each REST process' tail.
+// announces), read by seq by each REST process' tail, which PostgreSQL's
+// NOTIFY wakes at the commit (event_listener.h).
 #include <algorithm>
 #include <chrono>
 
 #include "ambdiag/storage/historian.h"
+#include "events_channel.h"
 #include "historian_impl.h"
 
 namespace ambdiag::storage {
@@ -17,7 +19,53 @@ StoredEvent read_event_row(const Stmt& s) {
   return {s.col_int(0), s.col_text(1), s.col_text(2), s.col_text(3), s.col_text(4)};
 }
 
+// Inside the caller's write transaction.
+int prune_events_in(Historian::Impl& impl, std::int64_t keep_rows, const std::string& older_than) {
+  // The newest keep_rows by seq (seqs grow by one but for rolled-back
+  // inserts, so this keeps at most keep_rows), and nothing older than the
+  // cutoff: time grows with seq, so the second walk stops at the first
+  // event it keeps.
+  impl.stmt(
+          "DELETE FROM events WHERE seq <= (SELECT max(seq) FROM events) - ?1 "
+          "OR seq < coalesce((SELECT seq FROM events WHERE time >= ?2 ORDER BY seq LIMIT 1), "
+          "(SELECT max(seq) + 1 FROM events))")
+      .bind(1, std::max<std::int64_t>(0, keep_rows))
+      .bind(2, older_than)
+      .run();
+  return static_cast<int>(impl.db.changes());
+}
+
 }  // namespace
+
+std::int64_t write_events(Historian::Impl& impl, const std::vector<StoredEvent>& events) {
+  // PostgreSQL hands seqs out at the INSERT but transactions commit in any
+  // order: seq 11 could be visible before 10, and a tail that read up to 11
+  // would never see 10. Held until the commit, the lock makes the events
+  // commit in seq order (SQLite: BEGIN IMMEDIATE already did). Taken last
+  // (nothing else is locked after it), it cannot be part of a deadlock.
+  impl.lock(Historian::Impl::LockSpace::events, "");
+  const std::string now = now_utc();  // inside: time grows with seq (prune_events relies on it)
+  std::int64_t seq = 0;
+  bool prune = false;
+  for (const auto& e : events) {
+    auto& ins = impl.stmt("INSERT INTO events (time, type, pump_id, data) VALUES (?, ?, ?, ?) RETURNING seq");
+    ins.bind(1, now).bind(2, e.type).bind(3, e.pump_id).bind(4, e.data_json);
+    if (!ins.step()) throw StorageError("append_event: the insert returned no seq");
+    seq = ins.col_int(0);
+    ins.reset();
+    prune = prune || seq % kEventsPruneEvery == 0;
+  }
+  // PostgreSQL: wakes every REST process' tail (EventListener) when this
+  // transaction commits, not at its next poll; a rolled-back one sends
+  // nothing. One for the transaction's events; the payload is the last
+  // seq, for whoever watches the channel.
+  if (impl.dialect() == Dialect::postgres)
+    impl.stmt("SELECT pg_notify(" AMBDIAG_EVENTS_CHANNEL_SQL ", CAST(CAST(? AS bigint) AS text))").bind(1, seq).run();
+  // Bounded: one event in kEventsPruneEvery pays for the pruning (two
+  // index walks from the oldest end), so an append stays one insert.
+  if (prune) prune_events_in(impl, kEventsKeepRows, utc_ms(std::chrono::system_clock::now() - kEventsKeep));
+  return seq;
+}
 
 std::int64_t Historian::append_event(const std::string& type, const std::string& pump_id, const std::string& data_json) {
   impl_->require_writer("append_event");
@@ -25,22 +73,12 @@ std::int64_t Historian::append_event(const std::string& type, const std::string&
     throw InputError("append_event: the type must be one non-empty line");
   if (data_json.find_first_of("\r\n") != std::string::npos)
     throw InputError("append_event " + quoted(type) + ": the data must be one line of JSON");
+  if (impl_->batch_tx) {  // written by the batch's commit (the events' lock last)
+    impl_->batch_events.push_back({0, "", type, pump_id, data_json});
+    return 0;
+  }
   Transaction tx(impl_->db, Transaction::Kind::write);
-  // PostgreSQL hands seqs out at the INSERT but transactions commit in any
-  // order: seq 11 could be visible before 10, and a tail that read up to 11
-  // would never see 10. Held until the commit, the lock makes the events
-  // commit in seq order (SQLite: BEGIN IMMEDIATE already did).
-  impl_->lock(Impl::LockSpace::events, "");
-  const std::string now = now_utc();  // inside: time grows with seq (prune_events relies on it)
-  auto& ins = impl_->stmt("INSERT INTO events (time, type, pump_id, data) VALUES (?, ?, ?, ?) RETURNING seq");
-  ins.bind(1, now).bind(2, type).bind(3, pump_id).bind(4, data_json);
-  if (!ins.step()) throw StorageError("append_event: the insert returned no seq");
-  const std::int64_t seq = ins.col_int(0);
-  ins.reset();
-  // Bounded: one event in kEventsPruneEvery pays for the pruning (two
-  // index walks from the oldest end), so an append stays one insert.
-  if (seq % kEventsPruneEvery == 0)
-    prune_events(kEventsKeepRows, utc_ms(std::chrono::system_clock::now() - kEventsKeep));
+  const std::int64_t seq = write_events(*impl_, {{0, "", type, pump_id, data_json}});
   tx.commit();
   return seq;
 }
@@ -48,18 +86,7 @@ std::int64_t Historian::append_event(const std::string& type, const std::string&
 int Historian::prune_events(std::int64_t keep_rows, const std::string& older_than) {
   impl_->require_writer("prune_events");
   Transaction tx(impl_->db, Transaction::Kind::write);
-  // The newest keep_rows by seq (seqs grow by one but for rolled-back
-  // inserts, so this keeps at most keep_rows), and nothing older than the
-  // cutoff: time grows with seq, so the second walk stops at the first
-  // event it keeps.
-  impl_->stmt(
-          "DELETE FROM events WHERE seq <= (SELECT max(seq) FROM events) - ?1 "
-          "OR seq < coalesce((SELECT seq FROM events WHERE time >= ?2 ORDER BY seq LIMIT 1), "
-          "(SELECT max(seq) + 1 FROM events))")
-      .bind(1, std::max<std::int64_t>(0, keep_rows))
-      .bind(2, older_than)
-      .run();
-  const int n = impl_->db.changes();
+  const int n = prune_events_in(*impl_, keep_rows, older_than);
   tx.commit();
   return n;
 }

@@ -38,6 +38,8 @@ struct Historian::Impl {
   int snapshot_depth = 0;
   std::optional<Transaction> snapshot_tx;
   std::optional<Transaction> batch_tx;  // an open WriteBatch
+  // Its events (append_event), written at its commit: the events' lock last.
+  std::vector<StoredEvent> batch_events;
   std::unordered_map<const char*, std::unique_ptr<Stmt>> stmts;  // keyed by the SQL literal's address
   // Last: stopped (its hook removed) before the connection closes.
   std::unique_ptr<detail::Durability> checkpointer;
@@ -56,8 +58,13 @@ struct Historian::Impl {
   }
 
   // What a write method serialises on beside the others of the same key.
-  // (5 is the schema migration's, pg_schema.cc.)
-  enum class LockSpace : std::int64_t { pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6, retention = 7, partitions = 8 };
+  // (5 is the schema migration's, pg_schema.cc.) Lock order (docs/storage.md
+  // "Lock order"): `events` is taken last, only by write_events, after
+  // which a transaction takes no other lock; a WriteBatch's appends wait
+  // for its commit.
+  enum class LockSpace : std::int64_t {
+    pump = 1, run = 2, token = 3, alarm_journal = 4, events = 6, retention = 7, partitions = 8, pump_alarms = 9
+  };
   // Inside a write transaction: waits until no other transaction holds the
   // key's lock, and holds it until this one ends. SQLite: nothing to do,
   // BEGIN IMMEDIATE already made this the only writer of the file.
@@ -139,6 +146,11 @@ struct Historian::Impl {
                        *st.samples_dropped_at);
   }
 };
+
+// historian_events.cc: inside the caller's write transaction, the events
+// (their type, pump and data; seq and time given here) under the events'
+// lock, NOTIFYing each on PostgreSQL. Returns the last one's seq.
+std::int64_t write_events(Historian::Impl& impl, const std::vector<StoredEvent>& events);
 
 // historian_trends.cc: inside the caller's write transaction, the run's
 // points from these values, replacing those of an older analysis job (false,

@@ -25,6 +25,7 @@ using namespace std::chrono_literals;
 struct SeenEvent {
   std::string id, type;
   nlohmann::json data;
+  std::chrono::steady_clock::time_point at;  // when the client parsed it
 };
 
 // The events a stream delivers, parsed, read on their own thread; with a
@@ -51,7 +52,7 @@ class EventStream {
               const std::string frame = pending.substr(0, end + 1);
               if (std::regex_search(frame, m, std::regex("id: (.*)\nevent: (.*)\ndata: (.*)\n"))) {
                 std::lock_guard l(mu_);
-                events_.push_back({m[1], m[2], nlohmann::json::parse(m[3].str())});
+                events_.push_back({m[1], m[2], nlohmann::json::parse(m[3].str()), std::chrono::steady_clock::now()});
               }
             }
             return !stop_;

@@ -5,6 +5,9 @@
 // password from the URI in any log.
 #include <signal.h>
 
+#include <atomic>
+#include <thread>
+
 #include "ambdiag/core/io_util.h"
 #include "pg_cluster.h"
 #include "service_fixture.h"
@@ -68,6 +71,43 @@ TEST_F(PostgresServeTest, AnUnreachableDatabaseIsABadInputNamingItWithoutThePass
   EXPECT_NE(serve.log().find("cannot connect"), std::string::npos) << serve.log();
   EXPECT_NE(serve.log().find("ambdiag:***@"), std::string::npos) << serve.log();
   EXPECT_EQ(serve.log().find("s3cret"), std::string::npos) << serve.log();
+}
+
+// The connections one `ambdiag serve` with every part holds on PostgreSQL
+// (docs/deployment.md "Connections"), counted by PostgreSQL itself while
+// 48 clients at once keep the REST workers busy: 1 (the ingest's writer)
+// + 2 (ingest lease, timeouts) + 2 (REST writes, alarms) + 1 + 2 (job
+// leases, two workers) + 16 (REST readers) + 2 (events tail and listener).
+TEST_F(PostgresServeTest, OneServerHoldsABoundedNumberOfConnectionsUnderManyClients) {
+  const std::string app = "conn_" + std::to_string(::getpid());
+  db = db.string() + "&application_name=" + app;
+  start_service({"--workers", "2", "--rate-limit", "0"});
+  const std::string count_sql =
+      "SELECT count(*) FROM pg_stat_activity WHERE application_name = '" + app + "'";
+  std::atomic<bool> done{false};
+  std::atomic<int> most{0}, failed{0};
+  std::thread counter([&] {
+    while (!done) {
+      most = std::max(most.load(), std::stoi(pg_sql(*postgres_test_location(), count_sql)));
+      std::this_thread::sleep_for(20ms);
+    }
+  });
+  std::vector<std::thread> clients;
+  for (int c = 0; c < 48; ++c)
+    clients.emplace_back([&] {
+      auto cl = client();
+      for (int i = 0; i < 20; ++i) {
+        const auto r = cl.Get("/api/v1/pumps", auth("viewer"));
+        if (!r || r->status != 200) ++failed;
+      }
+    });
+  for (auto& t : clients) t.join();
+  done = true;
+  counter.join();
+  std::printf("connections of one server (every part, 2 workers) under 48 clients: at most %d\n", most.load());
+  EXPECT_EQ(failed, 0);
+  EXPECT_GT(most, 10) << "the readers were not used: the test did not test the bound";
+  EXPECT_LE(most, 1 + 2 + 2 + 1 + 2 + 16 + 2);
 }
 
 }  // namespace

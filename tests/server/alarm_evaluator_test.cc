@@ -1,10 +1,17 @@
 // The alarm evaluation on a real historian file: runs evaluated in run
 // order when analyses finish out of order, an evaluation lost to a crash
 // made at the next start, the first reference re-evaluating the runs after
-// it, and the clock's part (stale data, shelves that expire).
+// it, the clock's part (stale data, shelves that expire), and two servers
+// evaluating one pump at once; on both backends.
 #include "alarms/alarm_evaluator.h"
 
 #include <gtest/gtest.h>
+
+#include <atomic>
+#include <barrier>
+#include <set>
+#include <thread>
+#include <tuple>
 
 #include "../storage/historian_fixture.h"
 #include "alarms/alarm_state.h"
@@ -21,10 +28,12 @@ const std::string kPump = "P-1";
 
 std::string run_id(int i) { return kPump + "/run-" + std::to_string(i); }
 
-class AlarmEvaluation : public ::testing::Test {
+class AlarmEvaluation : public ambdiag::testing::BackendTest {
  protected:
   void SetUp() override {
-    path_ = (ambdiag::testing::scratch_dir() / "h.db").string();
+    BackendTest::SetUp();
+    if (IsSkipped()) return;
+    path_ = location();
     h_.emplace(Historian::open(path_));
     defaults_ = merged_rule_set_json(default_rule_set_json(), json::object(), "defaults");
     h_->put_model(kPump, read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string()), "eng");
@@ -79,8 +88,9 @@ class AlarmEvaluation : public ::testing::Test {
   std::optional<Historian> h_;
   json defaults_;
 };
+AMBDIAG_ON_BOTH_BACKENDS(AlarmEvaluation);
 
-TEST_F(AlarmEvaluation, AnalysesFinishingOutOfOrderAreEvaluatedInRunOrder) {
+TEST_P(AlarmEvaluation, AnalysesFinishingOutOfOrderAreEvaluatedInRunOrder) {
   for (int i = 0; i < 5; ++i) add_run(i);
   h_->put_reference(kPump, {run_id(0), run_id(1)}, "eng");
   std::vector<json> seen;
@@ -107,7 +117,7 @@ TEST_F(AlarmEvaluation, AnalysesFinishingOutOfOrderAreEvaluatedInRunOrder) {
   EXPECT_EQ(ev.catch_up(*h_, kPump), 0) << "nothing evaluated twice";
 }
 
-TEST_F(AlarmEvaluation, AnEvaluationLostToACrashIsMadeAtTheNextStart) {
+TEST_P(AlarmEvaluation, AnEvaluationLostToACrashIsMadeAtTheNextStart) {
   for (int i = 0; i < 3; ++i) add_run(i);
   h_->put_reference(kPump, {run_id(0), run_id(1)}, "eng");
   finish(0, 1, healthy());
@@ -127,7 +137,7 @@ TEST_F(AlarmEvaluation, AnEvaluationLostToACrashIsMadeAtTheNextStart) {
   EXPECT_EQ(h_->alarm_history(a[0].alarm_id).size(), 1u);
 }
 
-TEST_F(AlarmEvaluation, TheFirstReferenceReevaluatesTheRunsAfterIt) {
+TEST_P(AlarmEvaluation, TheFirstReferenceReevaluatesTheRunsAfterIt) {
   for (int i = 0; i < 4; ++i) add_run(i);
   AlarmEvaluator ev(defaults_, nullptr);
   for (int i = 0; i < 4; ++i) finish(i, 0, without_reference());
@@ -147,7 +157,7 @@ TEST_F(AlarmEvaluation, TheFirstReferenceReevaluatesTheRunsAfterIt) {
   EXPECT_EQ(h_->find_alarm_cursor(kPump)->reference_version, 1);
 }
 
-TEST_F(AlarmEvaluation, TheClockRaisesStaleDataAndEndsShelves) {
+TEST_P(AlarmEvaluation, TheClockRaisesStaleDataAndEndsShelves) {
   add_run(0);
   finish(0, 0, without_reference());
   AlarmEvaluator ev(defaults_, nullptr);
@@ -175,6 +185,42 @@ TEST_F(AlarmEvaluation, TheClockRaisesStaleDataAndEndsShelves) {
   EXPECT_EQ(history[1].by, "ops");
   EXPECT_EQ(history[2].kind, "shelve_expired");
   EXPECT_EQ(history[2].by, "server");
+}
+
+// Two servers (two connections, an evaluator each) catching up one pump at
+// the same moments: they take turns on the pump's alarms
+// (Historian::lock_pump_alarms), so each run is evaluated once and each
+// transition journaled once; without the lock, on PostgreSQL, both read the
+// same cursor and both journal the same raise or clear.
+TEST_P(AlarmEvaluation, TwoServersEvaluatingOnePumpAtOnceJournalEachTransitionOnce) {
+  constexpr int kRuns = 12;
+  for (int i = 0; i < kRuns; ++i) add_run(i);
+  h_->put_reference(kPump, {run_id(0), run_id(1)}, "eng");
+  // Worn and healthy in turns from run 2: a raise, a clear, ... to journal.
+  for (int i = 0; i < kRuns; ++i) finish(i, 1, i >= 2 && i % 2 == 0 ? worn(1.7) : healthy());
+  std::barrier start(2);
+  std::atomic<int> evaluated{0};
+  std::vector<std::thread> servers;
+  for (int s = 0; s < 2; ++s)
+    servers.emplace_back([&] {
+      auto h = Historian::open(path_);
+      AlarmEvaluator ev(defaults_, nullptr);
+      start.arrive_and_wait();
+      try {
+        evaluated += ev.catch_up(h, kPump);
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << e.what();
+      }
+    });
+  for (auto& t : servers) t.join();
+  EXPECT_EQ(evaluated, kRuns) << "every run evaluated once between the two";
+  EXPECT_EQ(h_->find_alarm_cursor(kPump)->run_id, run_id(kRuns - 1));
+  std::set<std::tuple<std::int64_t, std::string, std::string>> seen;
+  const auto journal = h_->alarm_events(0, 1000);
+  for (const auto& e : journal)
+    EXPECT_TRUE(seen.insert({e.alarm_id, e.run_id, e.to}).second)
+        << "alarm " << e.alarm_id << " " << e.kind << " to " << e.to << " of " << e.run_id << " journaled twice";
+  EXPECT_FALSE(journal.empty());
 }
 
 }  // namespace

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <barrier>
+#include <chrono>
 #include <functional>
 #include <map>
 #include <mutex>
@@ -24,6 +26,8 @@ using ambdiag::testing::checksum_of;
 using ambdiag::testing::cut_chunks;
 using ambdiag::testing::run_json_text;
 using ambdiag::testing::samples_bytes;
+
+using namespace std::chrono_literals;
 
 constexpr int kWriters = 4;
 
@@ -141,6 +145,115 @@ TEST_P(ConcurrentWritersTest, OneRunStreamedByFourWritersIsStoredOnceAndEndsComp
   EXPECT_EQ(info->received_chunks, static_cast<std::int64_t>(chunks.size()));
   EXPECT_EQ(info->duplicate_chunks, static_cast<std::int64_t>(chunks.size()) * (kWriters - 1));
   EXPECT_EQ(h.read_samples("P-1/a"), ambdiag::testing::as_string(bytes));
+}
+
+// Lock order (docs/storage.md "Lock order"): an ingest batch that takes a
+// run's lock, announces, then takes an analysed run's lock (an agent
+// re-sending chunks of it), beside a finish_job of that run that announces
+// job.done. Before the events' lock was taken last (at the batch's commit),
+// the two took the run's lock and the events' in opposite orders and
+// PostgreSQL broke the deadlock by failing one (SQLSTATE 40P01).
+TEST_P(ConcurrentWritersTest, IngestBatchesAndFinishedJobsOfOneRunNeverDeadlock) {
+  constexpr int kRounds = 8;
+  const auto bytes = samples_bytes(400, 2, 5);
+  const auto chunks = cut_chunks(bytes, 2, 100);
+  const auto stored_run = [&](Historian& h, const std::string& id) {
+    h.begin_run(run_header_from_json(run_json_text(id, 2, "P-1")));
+    h.put_chunks(id, chunks);
+    ASSERT_EQ(h.end_run(id, 400, checksum_of(bytes)).status, RunStatus::complete);
+  };
+  {
+    auto h = Historian::open(location());
+    for (const char* id : {"P-1/analysed", "P-1/w0", "P-1/w1"}) stored_run(h, id);
+  }
+  std::barrier round(kWriters);
+  std::atomic<int> events{0};
+  in_parallel([&](int w, Historian& h) {
+    for (int i = 0; i < kRounds; ++i) {
+      if (w < 2) {  // the ingest: its own run, then the analysed one re-sent
+        round.arrive_and_wait();
+        auto batch = h.write_batch();
+        const std::string own = "P-1/w" + std::to_string(w);
+        h.put_chunks(own, std::span(&chunks[0], 1));
+        h.append_event("run.status", "P-1", "{}");
+        std::this_thread::sleep_for(5ms);  // the finisher takes the analysed run meanwhile
+        h.put_chunks("P-1/analysed", std::span(&chunks[1], 1));
+        h.append_event("run.status", "P-1", "{}");
+        batch.commit();
+        events += 2;
+      } else {  // an analysis worker storing a result of the analysed run
+        const int version = 100 * w + i;
+        h.enqueue_job({"analysis", "P-1", "P-1/analysed", version, 0});
+        round.arrive_and_wait();
+        const auto job = h.claim_job("w" + std::to_string(w), {"analysis"});
+        if (!job) continue;  // the other finisher took both
+        auto batch = h.write_batch();
+        ASSERT_TRUE(h.finish_job(job->job_id, job->attempts, "{}", {}, std::vector<SeriesValue>{{"x", "1", 1.0, {}}}));
+        std::this_thread::sleep_for(5ms);
+        h.append_event("job.done", "P-1", "{}");
+        batch.commit();
+        events += 1;
+      }
+    }
+  });
+  auto h = Historian::open(location(), Historian::Mode::read);
+  EXPECT_EQ(static_cast<int>(h.events_after(0, 1000).size()), events.load());
+  EXPECT_GE(events.load(), 2 * 2 * kRounds);
+}
+
+// A TransientError is a whole transaction to run again: two batches that
+// take two runs' locks in opposite orders deadlock on PostgreSQL, which
+// fails one; retry_transient runs it again and both end stored once (the
+// rolled-back attempt's counters are not kept). SQLite: no deadlock, each
+// batch runs once.
+TEST_P(ConcurrentWritersTest, ABatchFailedByADeadlockIsStoredOnceWhenRunAgain) {
+  const auto bytes = samples_bytes(800, 2, 9);
+  const auto chunks = cut_chunks(bytes, 2, 100);
+  {
+    auto h = Historian::open(location());
+    for (const char* id : {"P-1/x", "P-1/y"}) h.begin_run(run_header_from_json(run_json_text(id, 2, "P-1")));
+  }
+  std::barrier start(2);
+  std::atomic<int> attempts{0}, transient{0};
+  std::atomic<int> ran{0};
+  in_parallel([&](int w, Historian& h) {
+    if (w >= 2) return;
+    const std::string first = w == 0 ? "P-1/x" : "P-1/y", second = w == 0 ? "P-1/y" : "P-1/x";
+    bool waited = false;
+    storage::retry_transient([&] {
+      ++attempts;
+      auto batch = h.write_batch();
+      try {
+        for (std::size_t k = static_cast<std::size_t>(w); k < chunks.size(); k += 2) {
+          h.put_chunks(first, std::span(&chunks[k], 1));
+          if (!waited && postgres()) {  // the first attempts meet with a lock each (SQLite: one writer at a time)
+            waited = true;
+            start.arrive_and_wait();
+            std::this_thread::sleep_for(20ms);
+          }
+          h.put_chunks(second, std::span(&chunks[k], 1));
+        }
+      } catch (const TransientError&) {
+        ++transient;
+        throw;
+      }
+      batch.commit();
+    });
+    ++ran;
+  });
+  EXPECT_EQ(ran, 2);
+  if (postgres())
+    EXPECT_GE(transient, 1) << "no deadlock: the test did not test the retry";
+  else
+    EXPECT_EQ(transient, 0);
+  EXPECT_EQ(attempts, 2 + transient);
+  auto h = Historian::open(location());
+  for (const char* id : {"P-1/x", "P-1/y"}) {
+    const auto info = h.find_run(id);
+    EXPECT_EQ(info->received_chunks, static_cast<std::int64_t>(chunks.size())) << id;
+    EXPECT_EQ(info->duplicate_chunks, 0) << id;
+    EXPECT_EQ(h.end_run(id, 800, checksum_of(bytes)).status, RunStatus::complete) << id;
+  }
 }
 
 TEST_P(ConcurrentWritersTest, ATokenNameAddedAtOnceIsGivenOnce) {

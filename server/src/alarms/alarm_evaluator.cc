@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/events.h"
@@ -168,6 +169,8 @@ void AlarmEvaluator::commit(Historian::WriteBatch& batch, Historian& h, storage:
 int AlarmEvaluator::catch_up(Historian& h, const std::string& pump_id) {
   for (int evaluated = 0;; ++evaluated) {
     auto batch = h.write_batch();
+    // Another server evaluating this pump now: after it, from its cursor.
+    h.lock_pump_alarms(pump_id);
     const auto model = h.find_model(pump_id);
     if (!model) return evaluated;
     const auto ref = h.find_reference(pump_id);
@@ -215,10 +218,17 @@ int AlarmEvaluator::catch_up(Historian& h, const std::string& pump_id) {
 
 void AlarmEvaluator::tick(Historian& h, std::int64_t now, bool check_stale) {
   const std::string time = iso_ms(now);
-  {
+  // Each pump's expired shelves under its lock, read again there: another
+  // server's tick may have ended them meanwhile. One pump per transaction:
+  // never two pumps' locks at once.
+  std::set<std::string> shelved_pumps;
+  for (const auto& a : h.expired_shelves(time)) shelved_pumps.insert(a.pump_id);
+  for (const auto& pump_id : shelved_pumps) {
     auto batch = h.write_batch();
+    h.lock_pump_alarms(pump_id);
     storage::AlarmChanges c;
     for (auto& a : h.expired_shelves(time)) {
+      if (a.pump_id != pump_id) continue;
       AlarmActor actor{"server", time, "", ""};
       auto e = expire_shelve(a, actor);
       c.events.emplace_back(c.alarms.size(), std::move(e));
@@ -235,6 +245,7 @@ void AlarmEvaluator::tick(Historian& h, std::int64_t now, bool check_stale) {
     const AlarmRule* rule = rules.find("stale_data");
     if (!rule || !rule->enabled || age_s < rule->limit_s * rule->levels.front().raise) continue;  // the common case: no write
     auto batch = h.write_batch();
+    h.lock_pump_alarms(cur.pump_id);  // another server's tick raised it meanwhile: no second raise
     PumpAlarms pump = load_pump_alarms(h, cur.pump_id);
     auto c = evaluate_stale(rules, pump, cur.pump_id, age_s, time);
     commit(batch, h, c);

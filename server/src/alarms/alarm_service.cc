@@ -89,6 +89,10 @@ json AlarmService::act(std::int64_t alarm_id, F&& action) {
   auto batch = h_.write_batch();
   auto a = h_.find_alarm(alarm_id);
   if (!a) throw NotFoundError("no alarm " + std::to_string(alarm_id));
+  // Read again under the pump's lock: an evaluation or another server's
+  // action may be changing it now (the pump of an alarm never changes).
+  h_.lock_pump_alarms(a->pump_id);
+  a = h_.find_alarm(alarm_id);
   AlarmActor actor;
   actor.time = iso_ms(now_ns());
   storage::AlarmChanges c;

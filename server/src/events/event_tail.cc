@@ -22,10 +22,13 @@ EventBus::History events_table_history(ReaderPool& pool) {
   };
 }
 
-EventTail::EventTail(const std::string& db_path, EventBus& bus, std::chrono::milliseconds period)
+EventTail::EventTail(const std::string& db_path, EventBus& bus, std::chrono::milliseconds period, bool listen)
     : h_(storage::Historian::open(db_path, storage::Historian::Mode::read)),
       bus_(bus),
-      period_(std::max(period, std::chrono::milliseconds(1))) {}
+      period_(std::max(period, std::chrono::milliseconds(1))),
+      // LISTENing before start() reads where to go on from: an event
+      // committed in between is announced, not left to the next period.
+      listener_(listen ? storage::EventListener::open(db_path) : nullptr) {}
 
 EventTail::~EventTail() { stop(); }
 
@@ -40,6 +43,7 @@ void EventTail::start(std::size_t prime) {
     for (const auto& e : recent) bus_.publish_stored(to_event(e));
   }
   thread_ = std::thread([this] { loop(); });
+  if (listener_) listen_thread_ = std::thread([this] { listen_loop(); });
 }
 
 void EventTail::stop() {
@@ -48,6 +52,8 @@ void EventTail::stop() {
     stopping_ = true;
   }
   cv_.notify_all();
+  if (listener_) listener_->interrupt();
+  if (listen_thread_.joinable()) listen_thread_.join();
   if (thread_.joinable()) thread_.join();
 }
 
@@ -62,6 +68,19 @@ void EventTail::wake() {
 std::int64_t EventTail::polls() const {
   std::lock_guard l(mu_);
   return polls_;
+}
+
+std::int64_t EventTail::notifications() const { return listener_ ? listener_->notifications() : 0; }
+
+void EventTail::listen_loop() {
+  for (;;) {
+    {
+      std::lock_guard l(mu_);
+      if (stopping_) return;
+    }
+    // Bounded, so that a stop() between the check and the wait is seen.
+    if (listener_->wait(std::chrono::seconds(1))) wake();
+  }
 }
 
 void EventTail::loop() {

@@ -6,9 +6,11 @@
 // ring) and reads older ones from the table for a client that reconnects
 // with an older Last-Event-ID (EventBus::set_history).
 //
-// wake() polls at once instead of at the next period: the hook for a
-// notification from the database (PostgreSQL's LISTEN/NOTIFY), which would
-// make the period a fallback.
+// On PostgreSQL a second thread waits on an EventListener (LISTEN on the
+// channel append_event NOTIFYs at its commit) and calls wake(), which polls
+// at once: an event reaches the streams within milliseconds of its commit on
+// any server, and the period is the fallback (a lost notification, the
+// listener's connection down until it reconnects and catches up by seq).
 #pragma once
 
 #include <chrono>
@@ -19,6 +21,7 @@
 #include <thread>
 
 #include "ambdiag/server/events.h"
+#include "ambdiag/storage/event_listener.h"
 #include "ambdiag/storage/historian.h"
 #include "reader_pool.h"
 
@@ -26,8 +29,9 @@ namespace ambdiag::server::detail {
 
 class EventTail {
  public:
-  // Opens its read connection (InputError as Historian::open).
-  EventTail(const std::string& db_path, EventBus& bus, std::chrono::milliseconds period);
+  // Opens its read connection (InputError as Historian::open) and, on
+  // PostgreSQL with `listen`, its listening one.
+  EventTail(const std::string& db_path, EventBus& bus, std::chrono::milliseconds period, bool listen = true);
   ~EventTail();  // stops
   EventTail(const EventTail&) = delete;
   EventTail& operator=(const EventTail&) = delete;
@@ -37,9 +41,12 @@ class EventTail {
   void stop();  // idempotent; joins
   void wake();
   std::int64_t polls() const;  // for health: queries made
+  // Notifications received (0 on SQLite or without `listen`).
+  std::int64_t notifications() const;
 
  private:
   void loop();
+  void listen_loop();  // wake() at each notification
   void poll();  // every event after last_, in pages
 
   storage::Historian h_;
@@ -51,6 +58,8 @@ class EventTail {
   bool woken_ = false, stopping_ = false;
   std::int64_t polls_ = 0;
   std::thread thread_;
+  std::unique_ptr<storage::EventListener> listener_;  // null: poll only
+  std::thread listen_thread_;
 };
 
 Event to_event(const storage::StoredEvent& e);

@@ -50,6 +50,12 @@ struct RestOptions {
   // the pool bounds the clients served at once; idle keep-alive connections
   // are closed after keep_alive_timeout_s so they do not starve new clients.
   int worker_threads = 64;
+  // Read connections to the historian the workers share (a request waits
+  // for one while all are lent out). 0: one per worker thread on SQLite (a
+  // file handle each), kDefaultPgReaders on PostgreSQL, where each is a
+  // server process (docs/deployment.md "Connections"). At most worker_threads.
+  int db_readers = 0;
+  static constexpr int kDefaultPgReaders = 16;
   int keep_alive_timeout_s = 2;
   int keep_alive_max_requests = 1000;
   // Extra keys merged into GET /api/v1/health (e.g. ingest counters). Called
@@ -75,9 +81,13 @@ struct RestOptions {
   // GET /api/v1/events streams it. Null: the server makes its own. The
   // server publishes the historian's events table into it (every
   // process' events, by their seq), polling every event_poll_ms; 0: no
-  // polling (then only what is published to it directly shows).
+  // polling (then only what is published to it directly shows). On
+  // PostgreSQL, with event_notify, a connection LISTENs for the NOTIFY of
+  // each append and polls at once: the period is then the fallback
+  // (false: the period alone, for measuring it; docs/benchmarks.md).
   EventBus* events = nullptr;
   int event_poll_ms = 250;
+  bool event_notify = true;
   // Event streams open at once (each holds a worker thread; 503 beyond;
   // never more than half of worker_threads),
   // the heartbeat of an idle stream, and the events queued for a slow

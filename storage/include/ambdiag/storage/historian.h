@@ -33,6 +33,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -52,6 +53,35 @@ class StorageError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+// PostgreSQL broke a deadlock (SQLSTATE 40P01) or a serialization conflict
+// (40001) by failing this transaction: nothing of it is kept (a WriteBatch
+// must be rolled back whole, not only the call's savepoint) and the same
+// transaction may simply be run again (retry_transient). Never on SQLite,
+// whose one writer cannot deadlock.
+class TransientError : public StorageError {
+ public:
+  using StorageError::StorageError;
+};
+
+// Runs `tx` (one whole write transaction, e.g. a WriteBatch from creation
+// to commit) and runs it again after a TransientError, at most `attempts`
+// times in all, with a short growing pause (a deadlock's other party
+// commits meanwhile). Returns what `tx` returns; the last TransientError and
+// any other exception go to the caller. `tx` must start from the same state
+// each time: whatever it noted in memory during a rolled-back attempt is
+// to be forgotten (docs/storage.md "Lock order").
+template <class F>
+auto retry_transient(F&& tx, int attempts = 5) {
+  for (int attempt = 1;; ++attempt) {
+    try {
+      return tx();
+    } catch (const TransientError&) {
+      if (attempt >= attempts) throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10 * attempt));
+    }
+  }
+}
 
 enum class RunStatus { receiving, complete, incomplete };
 std::string to_string(RunStatus s);
@@ -353,9 +383,13 @@ class Historian {
   std::vector<std::string> list_artifacts(std::int64_t job_id);
 
   // --- events (events.h; historian_events.cc) ---
-  // Appends an event (GET /api/v1/events on every server); inside a
-  // WriteBatch it commits with what it announces, or not at all. Returns its
-  // seq. Keeps the table bounded (events.h: kEventsKeepRows, kEventsKeep).
+  // Appends an event (GET /api/v1/events on every server) and returns its
+  // seq. Inside a WriteBatch it is held until the batch's commit, which
+  // writes the batch's events (in the order appended) as its last step,
+  // so it commits with what it announces, or not at all, and returns 0:
+  // the events' lock is always the last lock a transaction takes
+  // (docs/storage.md "Lock order"). Keeps the table bounded (events.h:
+  // kEventsKeepRows, kEventsKeep).
   std::int64_t append_event(const std::string& type, const std::string& pump_id, const std::string& data_json);
   // The events after `after_seq`, oldest first, at most `limit` (>= 1).
   std::vector<StoredEvent> events_after(std::int64_t after_seq, int limit);
@@ -406,6 +440,14 @@ class Historian {
   // InputError when an open alarm of the same pump and rule exists (a second
   // one while active) or an event names no alarm; nothing is stored then.
   void apply_alarm_changes(AlarmChanges& changes);
+  // Inside a WriteBatch, before reading what an evaluation or an operator's
+  // action of the pump's alarms depends on (its alarms, memories, cursor):
+  // waits until no other transaction holds the pump's alarms and holds
+  // them until this one ends, so two servers evaluating one pump take
+  // turns and the second sees the first's result (docs/storage.md "What
+  // guards each write"). PostgreSQL: an advisory lock on the pump; SQLite:
+  // nothing (its one writer).
+  void lock_pump_alarms(const std::string& pump_id);
   std::optional<AlarmRecord> find_alarm(std::int64_t alarm_id);
   // Newest first.
   std::vector<AlarmRecord> list_alarms(const AlarmFilter& filter);

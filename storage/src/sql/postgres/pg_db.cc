@@ -171,6 +171,9 @@ void PgDb::check(const PGresult* r, const char* what) const {
   // value is what is wrong, as for any other bad input.
   if (state && (std::strcmp(state, "22021") == 0 || std::strcmp(state, "22P05") == 0))
     throw InputError(display_ + ": " + what + ": " + msg);
+  // A deadlock broken, a serialization conflict: the same transaction again may pass.
+  if (state && (std::strcmp(state, "40P01") == 0 || std::strcmp(state, "40001") == 0))
+    throw TransientError(display_ + ": " + what + ": " + msg);
   fail(what, msg);
 }
 
