@@ -28,6 +28,11 @@ class PgCluster {
   static std::optional<PgCluster> attach(const std::filesystem::path& dir);
   // Stops the server at once and removes the folder.
   static void stop(const std::filesystem::path& dir);
+  // `pg_ctl restart -m MODE` of the cluster in `dir` (fast: clients are
+  // disconnected and the server shuts down cleanly; immediate: it stops
+  // as a crash would, and recovers from its log at the start); returns
+  // once it accepts connections again. Throws with the server's log.
+  static void restart(const std::filesystem::path& dir, const std::string& mode);
 
   const std::filesystem::path& dir() const { return dir_; }
   // A URI of the cluster's `postgres` database, as superuser.
@@ -58,5 +63,7 @@ std::optional<std::string> postgres_test_location();
 // The process' cluster (started or attached on first use); nullptr like
 // postgres_test_location.
 const PgCluster* postgres_test_cluster();
+// AMBDIAG_NO_POSTGRES=1: the PostgreSQL half of the tests is left out.
+bool postgres_tests_disabled();
 
 }  // namespace ambdiag::testing
