@@ -247,9 +247,10 @@ class ClusterE2ETest : public MultiServerTest {
     const double done_s = since(paused);
     servers.at(victim).process->signal(SIGCONT);
     ASSERT_EQ(done["status"], "done") << done.dump() << logs();
+    char ingest_note[64] = "";
+    if (held_ingest) std::snprintf(ingest_note, sizeof ingest_note, ", ingest taken over after %.2f s", ingest_s);
     std::printf("[ e2e ] SIGSTOP of %s (%s) past its leases: job %lld done by another after %.2f s%s\n", victim.c_str(),
-                held_ingest ? "the ingest holder" : "a standby", static_cast<long long>(job_id), done_s,
-                held_ingest ? (", ingest taken over after " + std::to_string(ingest_s) + " s").c_str() : "");
+                held_ingest ? "the ingest holder" : "a standby", static_cast<long long>(job_id), done_s, ingest_note);
     EXPECT_TRUE(late_attempt_refused(victim, job_id, attempt, 120s)) << logs();
     if (held_ingest) {
       // Woken, it finds its lease lost and stands by.
@@ -323,18 +324,18 @@ class ClusterE2ETest : public MultiServerTest {
     }
   }
 
-  // Every run analysed once: its analysis done or failed, one job of kind
-  // analysis per run, one trend point per done run.
+  // Every run analysed once: its analysis done, one job of kind analysis
+  // per run, one trend point per run.
   void expect_analysed_once(const std::string& via, const std::vector<std::string>& run_ids) {
-    std::map<std::string, std::string> status;
     for (const auto& id : run_ids) {
       nlohmann::json an;
       for (const auto deadline = Clock::now() + 300s; Clock::now() < deadline; std::this_thread::sleep_for(200ms)) {
         an = json_on(via, run_url(id) + "/analysis");
         if (an.value("status", "") == "done" || an.value("status", "") == "failed") break;
       }
-      status[id] = an.value("status", "");
-      EXPECT_TRUE(status[id] == "done" || status[id] == "failed") << id << " " << an.dump() << logs();
+      // Done: healthy simulated runs analyse; a failure here was the
+      // database's (an attempt lost to a restart must be tried again).
+      EXPECT_EQ(an.value("status", ""), "done") << id << " " << an.dump() << logs();
     }
     for (const auto& p : pumps) {
       const auto jobs = json_on(via, "/api/v1/jobs?pump_id=" + p + "&kind=analysis")["jobs"];
@@ -342,7 +343,7 @@ class ClusterE2ETest : public MultiServerTest {
       int done = 0;
       for (const auto& j : jobs) {
         ++per_run[j["run_id"].get<std::string>()];
-        EXPECT_TRUE(j["status"] == "done" || j["status"] == "failed") << j.dump();
+        EXPECT_EQ(j["status"], "done") << j.dump();
         done += j["status"] == "done";
       }
       for (const auto& [run, n] : per_run) EXPECT_EQ(n, 1) << run;
