@@ -95,32 +95,79 @@ struct ConnFree {
   void operator()(PGconn* c) const { PQfinish(c); }
 };
 
-}  // namespace
-
-PgCluster PgCluster::start(const fs::path& dir, bool durable) {
-  const fs::path bin = bin_dir();
-  const passwd* pw = server_user();
-  stop(dir);  // whatever an interrupted run left there
+// An empty folder owned by the server's user (whatever an interrupted run
+// left there is stopped and removed).
+void make_server_dir(const fs::path& dir) {
+  PgCluster::stop(dir);
   fs::create_directories(dir);
   fs::permissions(dir, fs::perms::owner_all);
-  if (pw && chown(dir.c_str(), pw->pw_uid, pw->pw_gid) != 0) throw std::runtime_error("chown " + dir.string() + " failed");
+  if (const passwd* pw = server_user(); pw && chown(dir.c_str(), pw->pw_uid, pw->pw_gid) != 0)
+    throw std::runtime_error("chown " + dir.string() + " failed");
+}
+
+// pg_ctl start of the data folder in `dir`, on the folder's socket only.
+// fsync off: a test cluster need not survive a power cut. Enough
+// connections for a server's reader pool and the concurrency tests.
+void start_server(const fs::path& dir, bool durable) {
   const fs::path log = dir / "log";
-  if (run({(bin / "initdb").string(), "-D", (dir / "data").string(), "--auth=trust", "--username=postgres",
-           "--encoding=UTF8", "--locale=C.UTF-8", "--no-sync"},
-          log) != 0)
-    throw std::runtime_error("initdb in " + dir.string() + " failed:\n" + read_text(log));
-  // fsync off: a test cluster need not survive a power cut. Enough
-  // connections for a server's reader pool and the concurrency tests.
   const std::string opts = "-c listen_addresses='' -c unix_socket_directories=" + dir.string() + " -p " +
                            std::to_string(kPort) + " -c max_connections=300" +
                            (durable ? "" : " -c fsync=off -c full_page_writes=off");
-  if (run({(bin / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-w", "-t", "60", "-o", opts,
-           "start"},
+  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-w", "-t", "60", "-o",
+           opts, "start"},
           log) != 0)
     throw std::runtime_error("pg_ctl start in " + dir.string() + " failed:\n" + read_text(log));
-  PgCluster c(dir);
-  std::ofstream(dir / "uri") << c.uri();
-  return c;
+  std::ofstream(dir / "uri") << uri_of(dir);
+}
+
+}  // namespace
+
+PgCluster PgCluster::start(const fs::path& dir, bool durable) {
+  make_server_dir(dir);
+  const fs::path log = dir / "log";
+  if (run({(bin_dir() / "initdb").string(), "-D", (dir / "data").string(), "--auth=trust", "--username=postgres",
+           "--encoding=UTF8", "--locale=C.UTF-8", "--no-sync"},
+          log) != 0)
+    throw std::runtime_error("initdb in " + dir.string() + " failed:\n" + read_text(log));
+  start_server(dir, durable);
+  return PgCluster(dir);
+}
+
+PgCluster PgCluster::start_standby(const fs::path& dir, const PgCluster& primary, const std::string& name) {
+  make_server_dir(dir);
+  pg_sql(primary.uri(), "SELECT pg_create_physical_replication_slot('" + name + "')");
+  const fs::path log = dir / "log";
+  const std::string source =
+      "host=" + primary.dir().string() + " port=" + std::to_string(kPort) + " user=postgres application_name=" + name;
+  if (run({(bin_dir() / "pg_basebackup").string(), "-d", source, "-D", (dir / "data").string(), "-R", "-X", "stream",
+           "-S", name, "--no-sync"},
+          log) != 0)
+    throw std::runtime_error("pg_basebackup into " + dir.string() + " failed:\n" + read_text(log));
+  start_server(dir, false);
+  return PgCluster(dir);
+}
+
+int PgCluster::postmaster_pid() const {
+  std::ifstream in(dir_ / "data" / "postmaster.pid");
+  int pid = 0;
+  in >> pid;
+  return pid;
+}
+
+void PgCluster::crash() const {
+  if (const int pid = postmaster_pid(); pid > 0) kill(pid, SIGKILL);
+}
+
+void PgCluster::shut_down() const {
+  run({(bin_dir() / "pg_ctl").string(), "-D", (dir_ / "data").string(), "-m", "immediate", "-w", "stop"}, dir_ / "log");
+}
+
+void PgCluster::start_again() const { start_server(dir_, false); }
+
+void PgCluster::promote() const {
+  const fs::path log = dir_ / "log";
+  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir_ / "data").string(), "-w", "-t", "60", "promote"}, log) != 0)
+    throw std::runtime_error("pg_ctl promote in " + dir_.string() + " failed:\n" + read_text(log));
 }
 
 std::optional<PgCluster> PgCluster::attach(const fs::path& dir) {

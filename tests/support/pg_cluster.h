@@ -34,6 +34,24 @@ class PgCluster {
   // once it accepts connections again. Throws with the server's log.
   static void restart(const std::filesystem::path& dir, const std::string& mode);
 
+  // A streaming standby of `primary` in `dir`, started: pg_basebackup -R
+  // over a physical replication slot `name` (so the primary keeps the WAL
+  // the standby has not received: without one, a bulk ingest outruns it
+  // and its WAL is recycled), application_name `name` for the primary's
+  // synchronous_standby_names.
+  static PgCluster start_standby(const std::filesystem::path& dir, const PgCluster& primary, const std::string& name);
+
+  // kill -9 of the server's postmaster: the database host's crash.
+  void crash() const;
+  // Stops the server at once (pg_ctl stop -m immediate), keeping its
+  // folder; start_again() starts it on that folder.
+  void shut_down() const;
+  void start_again() const;
+  // pg_ctl promote of a standby; returns once it accepts writes.
+  void promote() const;
+  // The PID of the server's postmaster (0 if it does not run).
+  int postmaster_pid() const;
+
   const std::filesystem::path& dir() const { return dir_; }
   // A URI of the cluster's `postgres` database, as superuser.
   std::string uri() const;

@@ -282,6 +282,7 @@ try {
       await page.waitForFunction(() => document.querySelector('#explain-report img.figure').naturalWidth > 0);
       const [before, after] = (await page.$$eval('#explain-report dl dd', (d) => d.map((x) => x.textContent))).map(Number);
       assert.ok(before > 0 && after > 0, `NRMSE before ${before}, after ${after}`);
+      assert.ok(after <= before, `the improved model fits worse: NRMSE before ${before}, after ${after} (docs/explain.md, "Guarantee")`);
       assert.ok(await page.$('#updated-parameters tbody tr, #explanations tbody tr'), 'the report lists what it changed or found');
       await page.screenshot({ path: `${shots}/run-explain.png`, fullPage: true });
     });

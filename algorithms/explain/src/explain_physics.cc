@@ -37,7 +37,7 @@ std::string link_path(size_t i, std::string_view coef) { return "links[" + std::
 FitParameter factor_param(const std::string& name, double lo, double hi) { return {name, 1.0, lo, hi, 0.05}; }
 
 // Candidate scaling coefficients of link i by one factor.
-Candidate link_factor(const PlantModel& plant, size_t i, std::initializer_list<LinkCoef> coefs, double lo, double hi,
+Candidate link_factor(const PlantModel& plant, size_t i, const std::vector<LinkCoef>& coefs, double lo, double hi,
                       const std::string& physics, const std::string& what) {
   const Link& l = plant.links[i];
   const double rpm = plant.speed_rpm;
@@ -49,13 +49,16 @@ Candidate link_factor(const PlantModel& plant, size_t i, std::initializer_list<L
   c.id = physics + ":" + l.name + ":" + what;
   c.direction_key = "link_factor:" + l.name + ":" + what;
   c.location = {{"link", l.name}, {"node", l.node}};
-  c.params = {factor_param(what + "_factor", lo, hi)};
-  std::vector<LinkCoef> cs(coefs);
+  // A clearance factor c scales the coefficients by 1 / c: the parameter
+  // is the coefficients' factor, not the clearance's.
+  const std::string name = what == "clearance" ? "coefficient_factor" : what + "_factor";
+  c.params = {factor_param(name, lo, hi)};
+  const std::vector<LinkCoef> cs = coefs;
   c.apply = [i, cs](const std::vector<double>& x, PlantVariant& v) {
     for (LinkCoef k : cs) scale_link(v.plant.links[i], {k}, x[0]);
   };
-  c.describe = [cs, at, what](const std::vector<double>& x) {
-    json j = {{what + "_factor", x[0]}};
+  c.describe = [cs, at, name](const std::vector<double>& x) {
+    json j = {{name, x[0]}};
     for (LinkCoef k : cs) j[std::string(kLinkCoefNames[idx(k)])] = at[idx(k)] * x[0];
     return j;
   };
@@ -65,7 +68,10 @@ Candidate link_factor(const PlantModel& plant, size_t i, std::initializer_list<L
     for (LinkCoef k : cs) ch.push_back({link_path(i, kLinkCoefNames[idx(k)]), top[idx(k)], top[idx(k)] * x[0]});
     return ch;
   };
-  c.signature = what == "stiffness" ? "modes near the link shift in frequency" : "peak heights of modes near the link change";
+  c.signature = what == "stiffness" ? "modes near the link shift in frequency"
+                : what == "damping"   ? "peak heights of modes near the link change"
+                                      : "modes near the seal shift and change height together: its clearance changed (every coefficient "
+                                        "~ 1 / clearance)";
   return c;
 }
 
@@ -76,6 +82,14 @@ bool link_has(const Link& l, std::initializer_list<LinkCoef> coefs) {
       if (row.values[idx(c)] && *row.values[idx(c)] != 0.0) return true;
   }
   return false;
+}
+
+// Every coefficient a link states (at top level or in its table).
+std::vector<LinkCoef> stated_coefficients(const Link& l) {
+  std::vector<LinkCoef> out;
+  for (int k = 0; k < kLinkCoefCount; ++k)
+    if (link_has(l, {static_cast<LinkCoef>(k)})) out.push_back(static_cast<LinkCoef>(k));
+  return out;
 }
 
 Candidate housing_update(const PlantModel& plant, size_t i, bool axial) {
@@ -384,6 +398,14 @@ std::vector<Candidate> update_candidates(const PlantModel& plant) {
       out.push_back(link_factor(plant, i, {LinkCoef::kxx, LinkCoef::kyy}, 0.7, 1.3, "parameter_update", "stiffness"));
     if (link_has(l, {LinkCoef::cxx, LinkCoef::cyy}))
       out.push_back(link_factor(plant, i, {LinkCoef::cxx, LinkCoef::cyy}, 0.5, 2.0, "parameter_update", "damping"));
+    // A fluid seal's clearance: its bulk-flow coefficients, direct and
+    // cross-coupled K, C and M, all fall as 1 / clearance (the wear law of
+    // algorithms/diagnosis/fault_models.h). Worn (a balance piston at 1.5 x
+    // its clearance) loses a third of its stiffness, damping, cross-coupling
+    // and fluid mass at once; no factor on the direct terms alone, nor any
+    // physics, expresses the lost mass.
+    if (l.kind == "seal" || l.kind == "balance_piston")
+      out.push_back(link_factor(plant, i, stated_coefficients(l), 0.5, 2.0, "parameter_update", "clearance"));
   }
   for (size_t i = 0; i < plant.disks.size(); ++i) {
     const Disk& d = plant.disks[i];

@@ -294,7 +294,7 @@ Trial Selector::evaluate_fixed(const std::vector<Selected>& sel, const Candidate
 }
 
 std::optional<Trial> Selector::step(const std::vector<Selected>& sel, const std::vector<Candidate>& updates,
-                          const std::vector<Candidate>& physics) {
+                          const std::vector<Candidate>& physics, bool pairs, const std::set<std::string>& refused) {
   const PlantVariant cur = build(sel);
   const auto r0 = residual(cur, fit_);
   const double cf = chi2_of(r0), cv = chi2(cur, val_);
@@ -314,7 +314,7 @@ std::optional<Trial> Selector::step(const std::vector<Selected>& sel, const std:
   std::vector<Screened> lowrank[2];  // updates, physics with a low-rank model
   for (const auto* pool : {&updates, &physics}) {
     for (const auto& c : *pool) {
-      if (is_selected(sel, c)) continue;
+      if (is_selected(sel, c) || refused.count(c.id)) continue;
       if (c.touches_rotor) {
         Screened sc{0.0, &c, {}};
         if (has_lowrank(scr, c)) {
@@ -428,6 +428,7 @@ std::optional<Trial> Selector::step(const std::vector<Selected>& sel, const std:
     if (!win->cheap) return *win;
     *win = win->c->params.empty() ? evaluate_fixed(sel, *win->c, cf, cv) : try_candidate(sel, *win->c, nullptr, cf, cv, &win->x);
   }
+  if (!pairs) return std::nullopt;
   for (auto& t : trials)  // pairs below are fitted on the FE model
     t.cheap = false;
   // No single candidate pays: the best pair among the three best singles.

@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -124,9 +125,13 @@ class Selector {
 
   // One selection step over updates and physics. An update is preferred
   // when it explains at least 80 % of what the best physics candidate does:
-  // a wrong parameter is not missing physics.
+  // a wrong parameter is not missing physics. When no single candidate
+  // pays, the best pair of the three best singles (unless `pairs` is false:
+  // the challengers want one piece). Candidates whose id is in `refused`
+  // are not tried (explain_select.cc: a step that would raise the NRMSE).
   std::optional<Trial> step(const std::vector<Selected>& sel, const std::vector<Candidate>& updates,
-                            const std::vector<Candidate>& physics);
+                            const std::vector<Candidate>& physics, bool pairs = true,
+                            const std::set<std::string>& refused = {});
 
   static bool is_selected(const std::vector<Selected>& sel, const Candidate& c);
 

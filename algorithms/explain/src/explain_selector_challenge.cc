@@ -27,8 +27,8 @@ std::optional<std::string> Selector::replace_by_single(std::vector<Selected>& se
   if (sel.size() < 2 || claims < 1) return std::nullopt;
   const PlantVariant cur = build(sel);
   const double cfs = chi2(cur, fit_), cvs = chi2(cur, val_);
-  const std::optional<Trial> t = step({}, {}, physics);
-  if (!t || t->c2) return std::nullopt;
+  const std::optional<Trial> t = step({}, {}, physics, false);
+  if (!t) return std::nullopt;
   const double p1 = static_cast<double>(t->c->params.size());
   const double pen = penalty_per_param_;
   progress("parsimony: " + t->c->id + fmt(" alone: chi2 fit %.6g val %.6g; ", t->chi2_fit, t->chi2_val) +
@@ -61,8 +61,8 @@ std::vector<Selector::Alternative> Selector::alternatives(const std::vector<Sele
     std::vector<Candidate> pool;
     for (const auto& c : physics)
       if (c.physics != sel[k].c.physics && c.physics != "parameter_update") pool.push_back(c);
-    const std::optional<Trial> t = step(others, {}, pool);
-    if (!t || t->c2) continue;
+    const std::optional<Trial> t = step(others, {}, pool, false);
+    if (!t) continue;
     const double df = t->chi2_fit - cfs, dv = t->chi2_val - cvs;
     progress("alternative to " + sel[k].c.id + ": " + t->c->id + fmt(" chi2 %+.4g (fit), %+.4g (held-out)", df, dv));
     if (df > kDecisive && dv > kDecisive) continue;

@@ -237,7 +237,8 @@ async function explainReport(j) {
       ['left unexplained', String((r.unexplained || []).length)],
     ]),
   ];
-  // Explain reports what it found even where its corrections do not pay off; say so.
+  // Since explain's guarantee (docs/explain.md) its corrected model never fits
+  // worse; an explain job stored before it can still hold one: say so.
   if (r.nrmse_after > r.nrmse_before)
     parts.push(h('p', { class: 'note', id: 'explain-worse' }, '◆ The corrected model matches this run less well than the current one (NRMSE rose): read its findings as candidates, do not adopt it.'));
   if (Array.isArray(r.story) && r.story.length) parts.push(h('ul', { class: 'story' }, ...r.story.map((line) => h('li', {}, line))));

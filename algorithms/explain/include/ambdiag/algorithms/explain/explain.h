@@ -21,6 +21,15 @@
 //     differences between simulators. Finally all selected parameters are
 //     refitted together and any update whose removal costs less than its
 //     penalty is dropped.
+//     The guarantee (chi2 weighs by 1 / sigma^2, the NRMSE of cli.md does
+//     not): a step that raises the NRMSE beyond what the noise explains is
+//     refused and the step tried without it; at the end the pieces, in the
+//     order chosen and with their final values, must each lower the NRMSE
+//     of the model built so far (a piece that does not is not handed out),
+//     and each explanation reports its before and after in that chain. So
+//     the improved model never fits worse than the nominal; with no piece
+//     left nothing is explained, the reason in the story and on the
+//     unexplained bands.
 //  3. Report. What bands remain beyond noise with the final model are
 //     `unexplained`; NRMSE per entry and overall before and after; the
 //     noise-floor NRMSE sqrt(sum sigma^2 / sum |H|^2).
@@ -69,7 +78,9 @@ struct Mismatch {
 struct Explanation {
   std::string physics;
   nlohmann::json parameters, location, sd;
-  double nrmse_before = 0.0, nrmse_after = 0.0;  // whole matrix, before and after this step
+  // Whole matrix, the final pieces chosen before it without and with it
+  // (the guarantee above: after < before).
+  double nrmse_before = 0.0, nrmse_after = 0.0;
   double chi2_drop_fit = 0.0, chi2_drop_validation = 0.0, penalty = 0.0;
   std::string evidence;
   // Other physics this recording cannot tell apart from this one (fitted in

@@ -21,10 +21,12 @@
 //                                                                  zeta scaled beyond update bounds
 //
 // Parameter updates (bounds): link direct stiffness x[0.7, 1.3], link direct
-// damping x[0.5, 2], disk mass and Id x[0.9, 1.1], housing f x[0.9, 1.1],
-// zeta x[0.5, 2], m x[0.7, 1.3], axial k x[0.7, 1.3], axial c x[1/3, 3],
-// structural damping zeta x[0.5, 2]. A scaled coefficient is scaled in the
-// link's speed table too.
+// damping x[0.5, 2], a fluid seal's clearance (every coefficient of a link
+// of kind seal or balance_piston, direct and cross-coupled K, C, M, x[0.5,
+// 2]: they all go as 1 / clearance), disk mass and Id x[0.9, 1.1], housing
+// f x[0.9, 1.1], zeta x[0.5, 2], m x[0.7, 1.3], axial k x[0.7, 1.3], axial c
+// x[1/3, 3], structural damping zeta x[0.5, 2]. A scaled coefficient is
+// scaled in the link's speed table too.
 #pragma once
 
 #include <complex>
