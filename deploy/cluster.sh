@@ -93,7 +93,8 @@ status() {
   [ -f "$dir/cluster.env" ] && cat "$dir/cluster.env"
   local bad=0
   while read -r name pid; do
-    if alive "$pid"; then state=running; else state=DEAD; bad=1; fi
+    # An agent with --runs R ends when its runs are done; a server never should.
+    if alive "$pid"; then state=running; elif [[ "$name" == agent* ]]; then state=ended; else state=DEAD; bad=1; fi
     line="$name pid $pid $state"
     if [[ "$name" == server* ]] && [ -f "$dir/$name.port" ]; then
       line+=" $(python3 - "$(cat "$dir/$name.port")" <<'PY'

@@ -9,6 +9,7 @@ if [ "${AMBDIAG_NO_POSTGRES:-}" = 1 ]; then echo "AMBDIAG_NO_POSTGRES=1: skipped
 src=$1
 build=$2
 dir=$(mktemp -d /tmp/ambdiag-cluster-test.XXXXXX)
+chmod 755 "$dir"  # as root, PostgreSQL runs as postgres and must reach DIR/pg
 export AMBDIAG_BUILD=$build AMBDIAG_DOMAIN=$((100 + $$ % 120))
 cleanup() { "$src/deploy/cluster.sh" stop --dir "$dir" >/dev/null 2>&1 || true; rm -rf "$dir"; }
 trap cleanup EXIT
@@ -42,7 +43,9 @@ pids=$(awk '{print $2}' "$dir/pids")
 postmaster=$(head -1 "$dir/pg/data/postmaster.pid")
 "$src/deploy/cluster.sh" stop --dir "$dir"
 for p in $pids $postmaster; do
-  if kill -0 "$p" 2>/dev/null; then echo "process $p still runs after stop" >&2; exit 1; fi
+  # A zombie (exited, not yet reaped: here pid 1 may never reap) runs nothing.
+  state=$(ps -o stat= -p "$p" 2>/dev/null || true)
+  if [ -n "$state" ] && [[ "$state" != Z* ]]; then echo "process $p still runs after stop ($state)" >&2; exit 1; fi
 done
 [ ! -e "$dir/pids" ] || { echo "stop left $dir/pids" >&2; exit 1; }
 echo "cluster stopped: nothing left running"
