@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "server_health.h"
 #include "sql_peek.h"
 #include "stream_fixture.h"
 
@@ -56,18 +57,8 @@ class FailoverTest : public StreamTest {
     return m;
   }
 
-  static nlohmann::json health(const Member& m) {
-    httplib::Client c("127.0.0.1", m.port);
-    c.set_connection_timeout(0, 300000);
-    c.set_read_timeout(1, 0);
-    const auto r = c.Get("/api/v1/health");
-    if (!r || r->status != 200) return nlohmann::json::object();
-    return nlohmann::json::parse(r->body, nullptr, false);
-  }
-  static nlohmann::json group_of(const Member& m) {
-    const auto h = health(m);
-    return h.is_object() && h.contains("ingest_groups") ? h["ingest_groups"][0] : nlohmann::json::object();
-  }
+  static nlohmann::json health(const Member& m) { return health_on_port(m.port); }
+  static nlohmann::json group_of(const Member& m) { return ingest_group_on_port(m.port); }
   static std::string role(const Member& m) { return group_of(m).value("role", ""); }
   static bool wait_role(const Member& m, const std::string& want, std::chrono::milliseconds timeout) {
     for (const auto deadline = Clock::now() + timeout; Clock::now() < deadline; std::this_thread::sleep_for(20ms))

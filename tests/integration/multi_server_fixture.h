@@ -18,6 +18,7 @@
 #include <signal.h>
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <set>
@@ -148,6 +149,69 @@ class MultiServerTest : public ServiceTest {
     return s;
   }
 
+  // When the job `job_id` of a worker killed at `killed` (its attempt
+  // `attempt`) was queued again and claimed by another (seconds), and by
+  // whom; nothing if not within 300 s.
+  struct JobTakeover {
+    double requeued_s = -1, taken_s = -1;
+    std::string taker;
+  };
+  std::optional<JobTakeover> measure_job_takeover(const std::string& via, std::int64_t job_id, int attempt,
+                                                  std::chrono::steady_clock::time_point killed) {
+    JobTakeover t;
+    for (auto deadline = killed + 300s; t.taken_s < 0 && std::chrono::steady_clock::now() < deadline;) {
+      const auto j = job_on(via, job_id);
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
+      if (j.is_object()) {
+        if (t.requeued_s < 0 && (j["status"] != "running" || j["attempts"].get<int>() > attempt)) t.requeued_s = s;
+        if (j["attempts"].get<int>() > attempt && j["status"] != "queued") {
+          t.taken_s = s;
+          t.taker = j.value("worker", "(done)");
+        }
+      }
+      std::this_thread::sleep_for(25ms);
+    }
+    if (t.taken_s < 0) return std::nullopt;
+    return t;
+  }
+
+  // The late attempt `attempt` of job `job_id` on server `name` (paused
+  // past its lease, then woken): its progress, renewal or result refused,
+  // as its log says (within `timeout`).
+  bool late_attempt_refused(const std::string& name, std::int64_t job_id, int attempt, std::chrono::seconds timeout) {
+    const std::string late = "job " + std::to_string(job_id) + " of run ";
+    for (auto deadline = std::chrono::steady_clock::now() + timeout; std::chrono::steady_clock::now() < deadline;) {
+      const std::string log = servers.at(name).process->log();
+      for (auto at = log.find(late); at != std::string::npos; at = log.find(late, at + 1)) {
+        const std::string line = log.substr(at, log.find('\n', at) - at);
+        if (line.find("(attempt " + std::to_string(attempt) + ")") != std::string::npos &&
+            (line.find("result refused") != std::string::npos || line.find("lost its job") != std::string::npos))
+          return true;
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    return false;
+  }
+
+  // Every server named answers each path the same (one database); read
+  // again when a write fell between the reads.
+  void expect_same_on(const std::vector<std::string>& names, const std::vector<std::string>& paths) {
+    for (const auto& path : paths) {
+      bool same = false;
+      std::vector<nlohmann::json> answers;
+      for (int i = 0; i < 20 && !same; ++i) {
+        answers.clear();
+        for (const auto& n : names) answers.push_back(json_on(n, path));
+        same = std::all_of(answers.begin(), answers.end(), [&](const auto& a) { return a == answers.front(); }) &&
+               answers.front() == json_on(names.front(), path);
+        if (!same) std::this_thread::sleep_for(200ms);
+      }
+      std::string shown;
+      for (size_t i = 0; i < names.size(); ++i) shown += "\n" + names[i] + ": " + answers[i].dump();
+      EXPECT_TRUE(same) << path << shown;
+    }
+  }
+
   void run_scenario(const MultiServerScenario& sc) {
     make_tokens();
     const std::string lease = std::to_string(sc.lease_s);
@@ -194,23 +258,12 @@ class MultiServerTest : public ServiceTest {
     servers["B"].process->signal(SIGKILL);
     const auto killed = std::chrono::steady_clock::now();
     EXPECT_EQ(servers["B"].process->wait(10s), -SIGKILL);
-    std::optional<double> requeued_s, taken_s;
-    std::string taker;
-    for (auto deadline = killed + 300s; !taken_s && std::chrono::steady_clock::now() < deadline;) {
-      const auto j = job_on("A", j1);
-      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
-      if (!requeued_s && (j["status"] != "running" || j["attempts"].get<int>() > a1)) requeued_s = t;
-      if (j["attempts"].get<int>() > a1 && j["status"] != "queued") {
-        taken_s = t;
-        taker = j.value("worker", "(done)");
-      }
-      std::this_thread::sleep_for(25ms);
-    }
-    ASSERT_TRUE(requeued_s && taken_s) << job_on("A", j1).dump() << logs();
+    const auto took = measure_job_takeover("A", j1, a1, killed);
+    ASSERT_TRUE(took) << job_on("A", j1).dump() << logs();
     std::printf("[ takeover ] lease %.1f s: job %lld of the killed worker queued again after %.2f s, claimed by %s after %.2f s\n",
-                sc.lease_s, static_cast<long long>(j1), *requeued_s, taker.c_str(), *taken_s);
+                sc.lease_s, static_cast<long long>(j1), took->requeued_s, took->taker.c_str(), took->taken_s);
     // Expiry (at most a lease after the last renewal) + the requeue period (half a lease) + polling.
-    EXPECT_LE(*requeued_s, 1.5 * sc.lease_s + 1.5);
+    EXPECT_LE(took->requeued_s, 1.5 * sc.lease_s + 1.5);
 
     // B comes back (as B2); C is paused past its lease while it runs a job.
     start_part("B2", "analysis,rest", {"--workers", "1", "--job-lease", lease});
@@ -233,17 +286,7 @@ class MultiServerTest : public ServiceTest {
     std::printf("[ takeover ] job %lld of the paused worker done by another after %.2f s (its analysis included)\n",
                 static_cast<long long>(j2), stolen_s);
     // C's late attempt: its progress, renewal or result is refused.
-    const std::string late = "job " + std::to_string(j2) + " of run ";
-    bool refused = false;
-    for (auto deadline = std::chrono::steady_clock::now() + 300s; !refused && std::chrono::steady_clock::now() < deadline;) {
-      const std::string log = servers["C"].process->log();
-      for (auto at = log.find(late); at != std::string::npos && !refused; at = log.find(late, at + 1)) {
-        const std::string line = log.substr(at, log.find('\n', at) - at);
-        refused = line.find("(attempt " + std::to_string(a2) + ")") != std::string::npos &&
-                  (line.find("result refused") != std::string::npos || line.find("lost its job") != std::string::npos);
-      }
-      if (!refused) std::this_thread::sleep_for(100ms);
-    }
+    const bool refused = late_attempt_refused("C", j2, a2, 300s);
     EXPECT_TRUE(refused) << logs();
 
     for (auto& a : agents) EXPECT_EQ(a->wait(300s), 0) << a->log();
@@ -302,18 +345,7 @@ class MultiServerTest : public ServiceTest {
                                             "/api/v1/jobs?pump_id=P-101", "/api/v1/alarms?pump_id=P-101",
                                             "/api/v1/pumps/P-101/trends?series=fit.nrmse&raw=true",
                                             run_url(run_ids.front()) + "/analysis"};
-    for (const auto& path : paths) {
-      bool same = false;
-      nlohmann::json a, c, b2;
-      for (int i = 0; i < 20 && !same; ++i) {  // read again if a write fell between the reads
-        a = json_on("A", path);
-        c = json_on("C", path);
-        b2 = json_on("B2", path);
-        same = a == c && a == b2 && a == json_on("A", path);
-        if (!same) std::this_thread::sleep_for(200ms);
-      }
-      EXPECT_TRUE(same) << path << "\nA: " << a.dump() << "\nC: " << c.dump() << "\nB2: " << b2.dump();
-    }
+    expect_same_on({"A", "C", "B2"}, paths);
     for (auto& [name, s] : servers)
       if (s.process->running()) s.process->signal(SIGTERM);
     for (auto& [name, s] : servers)

@@ -184,6 +184,15 @@ void PgCluster::stop(const fs::path& dir) {
   fs::remove_all(dir, ec);
 }
 
+void PgCluster::restart(const fs::path& dir, const std::string& mode) {
+  const fs::path log = dir / "log";
+  // pg_ctl restart starts with the options of the last start (postmaster.opts).
+  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-m", mode, "-w", "-t",
+           "60", "restart"},
+          log) != 0)
+    throw std::runtime_error("pg_ctl restart -m " + mode + " in " + dir.string() + " failed:\n" + read_text(log));
+}
+
 std::string PgCluster::uri() const { return uri_of(dir_); }
 
 std::string pg_sql(const std::string& uri, const std::string& statement) {
@@ -258,15 +267,15 @@ ClusterEnvironment& environment() {
   return *env;
 }
 
-bool postgres_disabled() {
+}  // namespace
+
+bool postgres_tests_disabled() {
   const char* v = std::getenv("AMBDIAG_NO_POSTGRES");
   return v && std::string(v) == "1";
 }
 
-}  // namespace
-
 const PgCluster* postgres_test_cluster() {
-  if (postgres_disabled()) return nullptr;
+  if (postgres_tests_disabled()) return nullptr;
   return &environment().get();
 }
 

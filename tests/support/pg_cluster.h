@@ -28,6 +28,12 @@ class PgCluster {
   static std::optional<PgCluster> attach(const std::filesystem::path& dir);
   // Stops the server at once and removes the folder.
   static void stop(const std::filesystem::path& dir);
+  // `pg_ctl restart -m MODE` of the cluster in `dir` (fast: clients are
+  // disconnected and the server shuts down cleanly; immediate: it stops
+  // as a crash would, and recovers from its log at the start); returns
+  // once it accepts connections again. Throws with the server's log.
+  static void restart(const std::filesystem::path& dir, const std::string& mode);
+
   // A streaming standby of `primary` in `dir`, started: pg_basebackup -R
   // over a physical replication slot `name` (so the primary keeps the WAL
   // the standby has not received: without one, a bulk ingest outruns it
@@ -75,5 +81,7 @@ std::optional<std::string> postgres_test_location();
 // The process' cluster (started or attached on first use); nullptr like
 // postgres_test_location.
 const PgCluster* postgres_test_cluster();
+// AMBDIAG_NO_POSTGRES=1: the PostgreSQL half of the tests is left out.
+bool postgres_tests_disabled();
 
 }  // namespace ambdiag::testing

@@ -26,6 +26,9 @@ using storage::Historian;
 // nothing stored.
 struct Abandoned {};
 
+// Attempts a job may lose to database failures before it is recorded failed.
+constexpr int kMaxDatabaseAttempts = 5;
+
 // SQLite lets one connection write at a time; under continuous ingest a
 // job's write may wait past the busy timeout (StorageError). The result is
 // worth a few more tries before the attempt is given up (it is then queued
@@ -284,6 +287,13 @@ void JobRunner::execute(const storage::Job& job, const std::atomic<bool>& lost) 
       return true;
     });
   };
+  const auto record_failure = [&](const std::string& error) {
+    try {
+      if (store([&] { return h_.fail_job(job.job_id, job.attempts, error); }, false, error)) failure = error;
+    } catch (const std::exception& e2) {
+      std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
+    }
+  };
   try {
     JobOutput out;
     const PlantModel plant = job_plant(h_, job);
@@ -334,14 +344,26 @@ void JobRunner::execute(const storage::Job& job, const std::atomic<bool>& lost) 
       } catch (const std::exception&) {  // then its lease expires
       }
     }
+  } catch (const storage::StorageError& e) {
+    // The database failed, not the job (e.g. PostgreSQL restarting under a
+    // read of the run): the attempt goes back to the queue, as a killed
+    // worker's does, rather than failing the run's analysis for good. A job
+    // that keeps failing so (kMaxDatabaseAttempts) is recorded failed.
+    if (job.attempts < kMaxDatabaseAttempts) {
+      summary = std::string("the database failed: ") + e.what();
+      try {
+        const NormalPriorityScope normal;
+        if (h_.release_job(job.job_id, job.attempts)) summary += "; queued again";
+      } catch (const std::exception&) {  // then its lease expires and any worker requeues it
+        summary += "; queued again when its lease expires";
+      }
+    } else {
+      summary = std::string("failed: ") + e.what();
+      record_failure(e.what());
+    }
   } catch (const std::exception& e) {
     summary = std::string("failed: ") + e.what();
-    try {
-      const std::string error = e.what();
-      if (store([&] { return h_.fail_job(job.job_id, job.attempts, error); }, false, error)) failure = error;
-    } catch (const std::exception& e2) {
-      std::fprintf(stderr, "ambdiag serve: %s: cannot record the failure: %s\n", what.c_str(), e2.what());
-    }
+    record_failure(e.what());
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const double cpu = thread_cpu_s() - cpu0;

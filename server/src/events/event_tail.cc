@@ -14,7 +14,11 @@ EventBus::History events_table_history(ReaderPool& pool) {
     const auto last = h->last_event_seq();
     const auto first = h->first_event_seq();
     const auto after_seq = static_cast<std::int64_t>(after);
-    if (after_seq > last || (first ? after_seq + 1 < *first : after_seq < last)) return std::nullopt;
+    // Below the first event held: pruned, unless the id is 0 (a client that
+    // saw none wants all that is held; the first event's seq need not be 1:
+    // on PostgreSQL a rolled-back insert, e.g. a killed holder's, leaves its
+    // seq unused, and a server whose ring started later answered "reload").
+    if (after_seq > last || (first ? after_seq != 0 && after_seq + 1 < *first : after_seq < last)) return std::nullopt;
     std::vector<Event> out;
     for (const auto& e : h->events_after(after_seq, static_cast<int>(std::min<std::size_t>(max, 1u << 30))))
       out.push_back(to_event(e));

@@ -147,7 +147,11 @@ void PgDb::exec(const char* sql, const char* what) {
     ensure_connected();
     r.reset(PQexec(conn_, sql));
   }
-  track_transaction(sql);  // a failed COMMIT ends the transaction too
+  // A failed COMMIT ends the transaction too; a failed BEGIN (the
+  // connection lost under it, e.g. PostgreSQL restarting) opens none: else
+  // every later transaction on this connection would be refused as nested.
+  const bool failed = !r || (PQresultStatus(r.get()) != PGRES_COMMAND_OK && PQresultStatus(r.get()) != PGRES_TUPLES_OK);
+  if (!(failed && std::strncmp(sql, "BEGIN", 5) == 0)) track_transaction(sql);
   check(r.get(), what);
   // COMMIT of a transaction that had an error rolls back and says so only here.
   if (std::strcmp(sql, "COMMIT") == 0 && std::strcmp(PQcmdStatus(r.get()), "ROLLBACK") == 0)
