@@ -10,6 +10,7 @@
 #include <span>
 #include <thread>
 #include <unordered_map>
+#include <utility>
 
 #include "ambdiag/core/checksum.h"
 #include "ambdiag/core/error.h"
@@ -223,10 +224,22 @@ struct Ingest::Impl {
 
   // A run the historian knows (e.g. after a server restart) becomes active
   // again when its blocks arrive before its header is re-delivered.
+  bool lookup_failing = false;  // one message per database outage
   ActiveRun* find_or_load(const std::string& run_id) {
     if (auto it = active.find(run_id); it != active.end()) return &it->second;
-    if (!reader) reader.emplace(storage::Historian::open(db_path, storage::Historian::Mode::read));
-    const auto info = reader->find_run(run_id);
+    std::optional<storage::RunInfo> info;
+    try {
+      if (!reader) reader.emplace(storage::Historian::open(db_path, storage::Historian::Mode::read));
+      info = reader->find_run(run_id);
+      lookup_failing = false;
+    } catch (const storage::StorageError& e) {
+      // The database restarting: the block is dropped as an orphan for now
+      // and the agent re-sends it; the reader reconnects at its next use.
+      if (!std::exchange(lookup_failing, true))
+        detail::log_line(true, std::string("run ") + run_id + ": cannot look it up (blocks dropped until the "
+                                                              "database answers; the agents re-send them): " + e.what());
+      return nullptr;
+    }
     if (!info || info->status == storage::RunStatus::complete) return nullptr;
     auto& r = active[run_id];
     r = ActiveRun{info->pump_id, static_cast<uint32_t>(info->n_channels), Clock::now()};

@@ -10,6 +10,7 @@
 #include <ctime>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "ambdiag/core/error.h"
@@ -147,17 +148,26 @@ void AnalysisService::start() {
   // (a dead server's) is queued again now.
   I.leases.emplace(I.opt.db_path, I.opt.job_lease, I.work, I.opt.verbose);
   I.leases->start();
-  {
-    std::lock_guard lock(I.ctl_mu);
-    // Trend points of analyses stored before schema v5 (or without them).
-    const int backfilled = I.ctl->backfill_series([](const std::string& result) {
-      return detail::run_series(nlohmann::json::parse(result, nullptr, false));
-    });
-    if (I.opt.verbose && backfilled > 0)
-      std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
-    int queued = 0;
-    for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
-    if (I.opt.verbose && queued > 0) std::fprintf(stderr, "ambdiag serve: %d runs queued for analysis\n", queued);
+  // A database restarting at this moment (its connections closed) is not a
+  // reason to stop: the work below is tried again for up to 20 s.
+  for (int attempt = 1;; ++attempt) {
+    try {
+      std::lock_guard lock(I.ctl_mu);
+      // Trend points of analyses stored before schema v5 (or without them).
+      const int backfilled = I.ctl->backfill_series([](const std::string& result) {
+        return detail::run_series(nlohmann::json::parse(result, nullptr, false));
+      });
+      if (I.opt.verbose && backfilled > 0)
+        std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
+      int queued = 0;
+      for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
+      if (I.opt.verbose && queued > 0) std::fprintf(stderr, "ambdiag serve: %d runs queued for analysis\n", queued);
+      break;
+    } catch (const storage::StorageError& e) {
+      if (attempt >= 40) throw;
+      std::fprintf(stderr, "ambdiag serve: analysis start: %s; trying again\n", e.what());
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
   }
   I.alarms->start();
   const std::string prefix = I.opt.instance.empty() ? "" : I.opt.instance + "/";
@@ -169,8 +179,19 @@ void AnalysisService::start() {
         sched_param p{};
         pthread_setschedparam(pthread_self(), SCHED_IDLE, &p);
       }
-      detail::JobRunner runner(I.opt, prefix + "worker-" + std::to_string(k), I.counters, I.work, I.stop_flag, *I.leases);
-      runner.run();
+      // The worker's connection: a database restarting right now (its
+      // connections closed) is waited out, not a reason to end the process.
+      const std::string name = prefix + "worker-" + std::to_string(k);
+      std::optional<detail::JobRunner> runner;
+      while (!runner && !I.stop_flag) {
+        try {
+          runner.emplace(I.opt, name, I.counters, I.work, I.stop_flag, *I.leases);
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "ambdiag serve: %s: cannot open the historian: %s; trying again\n", name.c_str(), e.what());
+          std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        }
+      }
+      if (runner) runner->run();
     });
   }
 }
