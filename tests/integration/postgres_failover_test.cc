@@ -20,27 +20,20 @@
 
 #include <cstdio>
 
-#include <httplib.h>
-
-#include <nlohmann/json.hpp>
-
+#include "failover_fixture.h"
 #include "pg_cluster.h"
-#include "stream_fixture.h"
 
 namespace ambdiag::testing {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-class PostgresFailoverTest : public StreamTest {
+// The ingest failover tests' paced runs, agents and waits (failover_fixture.h).
+class PostgresFailoverTest : public FailoverTest {
  protected:
   fs::path pg_dir = fs::temp_directory_path() / ("ambdiag-pgfo-" + std::to_string(getpid()));
   std::optional<PgCluster> primary, standby;
 
   void SetUp() override {
-    if (!postgres_test_cluster()) GTEST_SKIP() << "AMBDIAG_NO_POSTGRES=1: the PostgreSQL backend is not tested";
+    if (postgres_tests_disabled()) GTEST_SKIP() << "AMBDIAG_NO_POSTGRES=1: the PostgreSQL backend is not tested";
     primary = PgCluster::start(pg_dir / "primary");
     standby = PgCluster::start_standby(pg_dir / "standby", *primary, "standby_a");
     db = "postgresql:///postgres?host=" + primary->dir().string() + "," + standby->dir().string() +
@@ -65,29 +58,6 @@ class PostgresFailoverTest : public StreamTest {
     ASSERT_EQ(state, want);
   }
 
-  std::vector<fs::path> runs(int n, const std::string& tag) {
-    std::vector<fs::path> out;
-    for (int i = 0; i < n; ++i) out.push_back(short_run(8.0, tag + "/" + std::to_string(i), tag + "-P" + std::to_string(i)));
-    return out;
-  }
-  std::vector<std::unique_ptr<Process>> stream(const std::vector<fs::path>& runs) {
-    std::vector<std::unique_ptr<Process>> agents;
-    for (const auto& r : runs)
-      agents.push_back(start_agent(r, {"--timeout", "90"}, dir / ("spool-" + r.filename().string())));
-    return agents;
-  }
-  bool all_begun(const std::vector<fs::path>& runs, std::chrono::milliseconds timeout) {
-    for (const auto deadline = Clock::now() + timeout; Clock::now() < deadline; std::this_thread::sleep_for(50ms)) {
-      bool all = true;
-      for (const auto& r : runs) {
-        const auto info = find_run(read_run(r.string()).run_id);
-        all = all && info && info->received_chunks >= 4;
-      }
-      if (all) return true;
-    }
-    return false;
-  }
-
   struct Outcome {
     int complete = 0;     // runs complete in the historian, sample for sample
     int agents_ok = 0;    // agents that ended with their run verified complete
@@ -102,9 +72,9 @@ class PostgresFailoverTest : public StreamTest {
     auto server = start_server({"--workers", "0"});
     const int port = rest_port(*server);
     EXPECT_GT(port, 0) << server->log();
-    const auto rs = runs(n, tag);
-    auto agents = stream(rs);
-    EXPECT_TRUE(all_begun(rs, 30s)) << server->log();
+    const auto rs = fleet_runs(n, 8.0, tag);
+    auto agents = start_agents(rs);
+    EXPECT_TRUE(wait_chunks(rs, 4, 30s)) << server->log();
 
     standby->shut_down();
     std::this_thread::sleep_for(1s);
@@ -145,13 +115,8 @@ class PostgresFailoverTest : public StreamTest {
 
   // The ingest's commits so far (its health), -1 when it does not answer.
   static int64_t commits(int port) {
-    httplib::Client c("127.0.0.1", port);
-    c.set_connection_timeout(0, 300000);
-    c.set_read_timeout(2, 0);
-    const auto r = c.Get("/api/v1/health");
-    if (!r || r->status != 200) return -1;
-    const auto h = nlohmann::json::parse(r->body, nullptr, false);
-    return h.is_object() && h.contains("ingest") ? h["ingest"].value("commits", int64_t{-1}) : -1;
+    const auto h = health_on_port(port);
+    return h.contains("ingest") ? h["ingest"].value("commits", int64_t{-1}) : -1;
   }
 };
 

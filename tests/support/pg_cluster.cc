@@ -105,18 +105,28 @@ void make_server_dir(const fs::path& dir) {
     throw std::runtime_error("chown " + dir.string() + " failed");
 }
 
+// `pg_ctl -D DIR/data ARGS...` (as the server's user), its output in
+// DIR/log; throws with that log when it fails.
+void pg_ctl(const fs::path& dir, const std::vector<std::string>& args, const std::string& what) {
+  std::vector<std::string> argv = {(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  if (run(argv, dir / "log") != 0)
+    throw std::runtime_error("pg_ctl " + what + " in " + dir.string() + " failed:\n" + read_text(dir / "log"));
+}
+
+// pg_ctl stop -m immediate: the server stops at once; whether it ran or not.
+void stop_now(const fs::path& dir, const fs::path& log) {
+  run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-m", "immediate", "-w", "stop"}, log);
+}
+
 // pg_ctl start of the data folder in `dir`, on the folder's socket only.
 // fsync off: a test cluster need not survive a power cut. Enough
 // connections for a server's reader pool and the concurrency tests.
 void start_server(const fs::path& dir, bool durable) {
-  const fs::path log = dir / "log";
   const std::string opts = "-c listen_addresses='' -c unix_socket_directories=" + dir.string() + " -p " +
                            std::to_string(kPort) + " -c max_connections=300" +
                            (durable ? "" : " -c fsync=off -c full_page_writes=off");
-  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-w", "-t", "60", "-o",
-           opts, "start"},
-          log) != 0)
-    throw std::runtime_error("pg_ctl start in " + dir.string() + " failed:\n" + read_text(log));
+  pg_ctl(dir, {"-l", (dir / "log").string(), "-w", "-t", "60", "-o", opts, "start"}, "start");
   std::ofstream(dir / "uri") << uri_of(dir);
 }
 
@@ -147,28 +157,18 @@ PgCluster PgCluster::start_standby(const fs::path& dir, const PgCluster& primary
   return PgCluster(dir);
 }
 
-int PgCluster::postmaster_pid() const {
-  std::ifstream in(dir_ / "data" / "postmaster.pid");
+void PgCluster::crash() const {
+  std::ifstream in(dir_ / "data" / "postmaster.pid");  // its first line is the postmaster's PID
   int pid = 0;
   in >> pid;
-  return pid;
+  if (pid > 0) kill(pid, SIGKILL);
 }
 
-void PgCluster::crash() const {
-  if (const int pid = postmaster_pid(); pid > 0) kill(pid, SIGKILL);
-}
-
-void PgCluster::shut_down() const {
-  run({(bin_dir() / "pg_ctl").string(), "-D", (dir_ / "data").string(), "-m", "immediate", "-w", "stop"}, dir_ / "log");
-}
+void PgCluster::shut_down() const { stop_now(dir_, dir_ / "log"); }
 
 void PgCluster::start_again() const { start_server(dir_, false); }
 
-void PgCluster::promote() const {
-  const fs::path log = dir_ / "log";
-  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir_ / "data").string(), "-w", "-t", "60", "promote"}, log) != 0)
-    throw std::runtime_error("pg_ctl promote in " + dir_.string() + " failed:\n" + read_text(log));
-}
+void PgCluster::promote() const { pg_ctl(dir_, {"-w", "-t", "60", "promote"}, "promote"); }
 
 std::optional<PgCluster> PgCluster::attach(const fs::path& dir) {
   if (!fs::exists(dir / "uri")) return std::nullopt;
@@ -179,18 +179,13 @@ std::optional<PgCluster> PgCluster::attach(const fs::path& dir) {
 
 void PgCluster::stop(const fs::path& dir) {
   std::error_code ec;
-  if (fs::exists(dir / "data" / "postmaster.pid", ec))
-    run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-m", "immediate", "-w", "stop"}, "/dev/null");
+  if (fs::exists(dir / "data" / "postmaster.pid", ec)) stop_now(dir, "/dev/null");
   fs::remove_all(dir, ec);
 }
 
 void PgCluster::restart(const fs::path& dir, const std::string& mode) {
-  const fs::path log = dir / "log";
   // pg_ctl restart starts with the options of the last start (postmaster.opts).
-  if (run({(bin_dir() / "pg_ctl").string(), "-D", (dir / "data").string(), "-l", log.string(), "-m", mode, "-w", "-t",
-           "60", "restart"},
-          log) != 0)
-    throw std::runtime_error("pg_ctl restart -m " + mode + " in " + dir.string() + " failed:\n" + read_text(log));
+  pg_ctl(dir, {"-l", (dir / "log").string(), "-m", mode, "-w", "-t", "60", "restart"}, "restart -m " + mode);
 }
 
 std::string PgCluster::uri() const { return uri_of(dir_); }

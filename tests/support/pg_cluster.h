@@ -49,8 +49,6 @@ class PgCluster {
   void start_again() const;
   // pg_ctl promote of a standby; returns once it accepts writes.
   void promote() const;
-  // The PID of the server's postmaster (0 if it does not run).
-  int postmaster_pid() const;
 
   const std::filesystem::path& dir() const { return dir_; }
   // A URI of the cluster's `postgres` database, as superuser.
