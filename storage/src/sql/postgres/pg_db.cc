@@ -1,11 +1,13 @@
 #include "sql/postgres/pg_db.h"
 
 #include <bit>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <thread>
 
 #include "ambdiag/core/error.h"
 #include "ambdiag/storage/historian.h"
@@ -116,12 +118,38 @@ void PgDb::configure() {
        "session settings");
 }
 
+// A server restarting (or a standby being promoted) refuses connections for
+// a moment ("the database system is shutting down / starting up"), or
+// closes a new one while it is being set up: the reconnect is tried again
+// for up to kReconnectFor before the caller's statement fails, so a restart
+// is a pause for every thread of a process (its start-up too), not an error
+// each must handle.
+constexpr auto kReconnectFor = std::chrono::seconds(10);
+
 void PgDb::ensure_connected() {
-  if (PQstatus(conn_) == CONNECTION_OK || in_tx_) return;  // a lost transaction fails; its rollback ends it
-  PQreset(conn_);
-  if (PQstatus(conn_) != CONNECTION_OK) fail("reconnect", PQerrorMessage(conn_));
-  ++generation_;  // the server forgot this session's prepared statements
-  configure();
+  if (PQstatus(conn_) == CONNECTION_OK || in_tx_ || reconnecting_) return;  // a lost transaction fails; its rollback ends it
+  reconnecting_ = true;  // configure()'s own statements must not reconnect again
+  const auto deadline = std::chrono::steady_clock::now() + kReconnectFor;
+  for (;;) {
+    PQreset(conn_);
+    if (PQstatus(conn_) == CONNECTION_OK) {
+      ++generation_;  // the server forgot this session's prepared statements
+      try {
+        configure();
+        break;
+      } catch (const StorageError&) {
+        if (PQstatus(conn_) == CONNECTION_OK || std::chrono::steady_clock::now() >= deadline) {
+          reconnecting_ = false;
+          throw;
+        }
+      }
+    } else if (std::chrono::steady_clock::now() >= deadline) {
+      reconnecting_ = false;
+      fail("reconnect", PQerrorMessage(conn_));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  reconnecting_ = false;
 }
 
 bool PgDb::in_transaction() const {

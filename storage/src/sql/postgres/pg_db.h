@@ -83,6 +83,7 @@ class PgDb final : public Connection {
   std::string uri_, display_;
   bool read_only_;
   bool in_tx_ = false;
+  bool reconnecting_ = false;  // inside ensure_connected (configure's statements)
   std::int64_t changes_ = 0;
   std::uint64_t generation_ = 1, statements_ = 0;
 };
