@@ -142,6 +142,7 @@ token=$("$bin" token add --db "$uri" --role engineer --name "cluster-$(date +%s)
 start_server() {  # name parts port
   local name=$1 parts=$2 port=$3 extra=()
   [[ "$parts" == *ingest* ]] && extra+=(--domain "$domain" --partition cluster --ingest-group cluster)
+  : >"$dir/$name.log"  # read below at once: the background job may not have opened it yet
   setsid "$bin" serve --db "$uri" --parts "$parts" --instance "$name" --http-port "$port" --anonymous-read \
     "${extra[@]}" >"$dir/$name.log" 2>&1 </dev/null &
   echo "server-$name $!" >>"$pids"

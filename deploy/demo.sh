@@ -35,6 +35,7 @@ token=$("$bin" token add --db "$db" --role engineer --name demo --json | python3
 
 # --anonymous-read: the web UI opens on the demo fleet without a token (read-only);
 # the engineer's token printed at the end signs in to acknowledge, shelve, explain.
+: >"$out/server.log"  # read below at once: the background job may not have opened it yet
 "$bin" serve --db "$db" --http-port 0 --domain "$domain" --partition demo --anonymous-read 2>"$out/server.log" &
 server=$!
 trap 'kill $server 2>/dev/null; wait $server 2>/dev/null || true' EXIT

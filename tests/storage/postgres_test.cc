@@ -181,6 +181,10 @@ TEST_F(PostgresTest, AConnectionTheServerEndedIsOpenedAgainOutsideATransaction) 
   EXPECT_TRUE(h.find_run("P-7/a"));
   h.begin_run(run_header_from_json(run_json_text("P-7/b", 2)));
   EXPECT_EQ(h.count_runs(), 2);
+  // A statement this connection has not prepared yet: its PREPARE is what
+  // finds the connection gone (a server started during a restart died so).
+  pg_sql(location_, "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = '" + app + "'");
+  EXPECT_EQ(h.list_runs("P-7").size(), 2u);
   // A write transaction's BEGIN too; one whose connection goes inside it fails, nothing stored.
   pg_sql(location_, "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = '" + app + "'");
   h.begin_run(run_header_from_json(run_json_text("P-7/c", 2)));

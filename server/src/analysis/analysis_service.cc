@@ -147,21 +147,26 @@ void AnalysisService::start() {
   // What another process may be running is left to its lease; what expired
   // (a dead server's) is queued again now.
   I.leases.emplace(I.opt.db_path, I.opt.job_lease, I.work, I.opt.verbose);
-  I.leases->start();
-  // A database restarting at this moment (its connections closed) is not a
-  // reason to stop: the work below is tried again for up to 20 s.
+  // A database restarting at this moment (a transaction's connection
+  // closed under it) is not a reason to stop: the start-up's transactions
+  // are tried again for up to 20 s. Each step may run again: the leases'
+  // and the alarms' threads start only once their first transaction passed.
   for (int attempt = 1;; ++attempt) {
     try {
-      std::lock_guard lock(I.ctl_mu);
-      // Trend points of analyses stored before schema v5 (or without them).
-      const int backfilled = I.ctl->backfill_series([](const std::string& result) {
-        return detail::run_series(nlohmann::json::parse(result, nullptr, false));
-      });
-      if (I.opt.verbose && backfilled > 0)
-        std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
-      int queued = 0;
-      for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
-      if (I.opt.verbose && queued > 0) std::fprintf(stderr, "ambdiag serve: %d runs queued for analysis\n", queued);
+      I.leases->start();
+      {
+        std::lock_guard lock(I.ctl_mu);
+        // Trend points of analyses stored before schema v5 (or without them).
+        const int backfilled = I.ctl->backfill_series([](const std::string& result) {
+          return detail::run_series(nlohmann::json::parse(result, nullptr, false));
+        });
+        if (I.opt.verbose && backfilled > 0)
+          std::fprintf(stderr, "ambdiag serve: trend points of %d analysed runs filled in\n", backfilled);
+        int queued = 0;
+        for (const auto& p : I.ctl->list_pumps()) queued += I.schedule_pump_locked(p.pump_id);
+        if (I.opt.verbose && queued > 0) std::fprintf(stderr, "ambdiag serve: %d runs queued for analysis\n", queued);
+      }
+      I.alarms->start();
       break;
     } catch (const storage::StorageError& e) {
       if (attempt >= 40) throw;
@@ -169,7 +174,6 @@ void AnalysisService::start() {
       std::this_thread::sleep_for(std::chrono::milliseconds(500));
     }
   }
-  I.alarms->start();
   const std::string prefix = I.opt.instance.empty() ? "" : I.opt.instance + "/";
   for (int k = 0; k < I.opt.workers; ++k) {
     I.workers.emplace_back([&I, k, prefix] {

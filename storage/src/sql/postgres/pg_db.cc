@@ -168,12 +168,12 @@ bool PgDb::lost_outside_transaction(bool was_in_transaction) const {
 }
 
 void PgDb::exec(const char* sql, const char* what) {
-  ensure_connected();
-  const bool was_in_tx = in_tx_;
-  PgResult r(PQexec(conn_, sql));
-  if (lost_outside_transaction(was_in_tx)) {  // e.g. BEGIN on a connection the server ended: once more
+  PgResult r;
+  for (int attempt = 0;; ++attempt) {  // e.g. BEGIN on a connection the server ended: again, on a new one
     ensure_connected();
+    const bool was_in_tx = in_tx_;
     r.reset(PQexec(conn_, sql));
+    if (attempt == kLostRetries || !lost_outside_transaction(was_in_tx)) break;
   }
   // A failed COMMIT ends the transaction too; a failed BEGIN (the
   // connection lost under it, e.g. PostgreSQL restarting) opens none: else
@@ -226,12 +226,21 @@ PgStmt::~PgStmt() {
 }
 
 void PgStmt::prepare_on_server() {
-  name_ = db_.next_statement_name();
-  PgResult p(PQprepare(db_.get(), name_.c_str(), sql_.c_str(), 0, nullptr));
-  if (!p || PQresultStatus(p.get()) != PGRES_COMMAND_OK)  // this program's SQL: say which
-    db_.check(p.get(), ("prepare " + sql_).c_str());
-  PgResult d(PQdescribePrepared(db_.get(), name_.c_str()));
-  db_.check(d.get(), "describe");
+  PgResult d;
+  for (int attempt = 0;; ++attempt) {  // a connection lost outside a transaction: again, on a new one
+    const bool was_in_tx = db_.in_transaction();
+    name_ = db_.next_statement_name();
+    PgResult p(PQprepare(db_.get(), name_.c_str(), sql_.c_str(), 0, nullptr));
+    const bool prepared = p && PQresultStatus(p.get()) == PGRES_COMMAND_OK;
+    if (prepared) d.reset(PQdescribePrepared(db_.get(), name_.c_str()));
+    if (attempt < PgDb::kLostRetries && db_.lost_outside_transaction(was_in_tx)) {
+      db_.ensure_connected();
+      continue;
+    }
+    if (!prepared) db_.check(p.get(), ("prepare " + sql_).c_str());  // this program's SQL: say which
+    db_.check(d.get(), "describe");
+    break;
+  }
   const int n = PQnparams(d.get());
   param_types_.resize(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) param_types_[static_cast<size_t>(k)] = PQparamtype(d.get(), k);
@@ -330,17 +339,19 @@ PgStmt::Args PgStmt::args() const {
 void PgStmt::execute() {
   if (db_.streaming && db_.streaming != this)
     throw std::logic_error("a statement ran while another read its rows one by one or pipelined: " + sql_);
-  db_.ensure_connected();
-  if (prepared_generation_ != db_.generation()) prepare_on_server();  // reconnected: the same types again
+  const auto connect = [this] {
+    db_.ensure_connected();
+    if (prepared_generation_ != db_.generation()) prepare_on_server();  // reconnected: the same types again
+  };
+  connect();
   const Args a = args();
   const int n = static_cast<int>(params_.size());
   if (fetch_ == Fetch::all) {
-    const bool was_in_tx = db_.in_transaction();
-    result_.reset(PQexecPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1));
-    if (db_.lost_outside_transaction(was_in_tx)) {  // a read on a connection the server ended: once more
-      db_.ensure_connected();
-      prepare_on_server();
+    for (int attempt = 0;; ++attempt) {  // a read on a connection the server ended: again, on a new one
+      const bool was_in_tx = db_.in_transaction();
       result_.reset(PQexecPrepared(db_.get(), name_.c_str(), n, a.values.data(), a.lengths.data(), a.formats.data(), 1));
+      if (attempt == PgDb::kLostRetries || !db_.lost_outside_transaction(was_in_tx)) break;
+      connect();
     }
     db_.check(result_.get(), "statement");
     db_.set_changes(std::atoll(PQcmdTuples(result_.get())));

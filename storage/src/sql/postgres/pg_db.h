@@ -7,8 +7,9 @@
 // that a bound value is sent in the parameter's own type: int8, float8 and
 // bytea in binary, text as its bytes). Results come back in binary and are
 // decoded by column type. A lost connection is re-opened at the next
-// statement outside a transaction, which is tried again once on it
-// (statements then prepare again); inside a transaction the call fails.
+// statement outside a transaction, which is tried again on it (up to
+// kLostRetries times; statements then prepare again); inside a transaction
+// the call fails.
 #pragma once
 
 #include <libpq-fe.h>
@@ -67,6 +68,9 @@ class PgDb final : public Connection {
   // before it, so the call may be made again on a new connection (outside
   // a transaction the historian only reads, or begins one).
   bool lost_outside_transaction(bool was_in_transaction) const;
+  // How often such a call is made again: a server going down (pg_ctl
+  // restart, a failover) may still accept the reconnect, then close it.
+  static constexpr int kLostRetries = 3;
   std::uint64_t generation() const { return generation_; }
   std::string next_statement_name() { return "ambdiag_" + std::to_string(++statements_); }
   void set_changes(std::int64_t n) { changes_ = n; }
