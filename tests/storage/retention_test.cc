@@ -49,14 +49,18 @@ Historian with_one_old_run(const std::string& path) {
   return h;
 }
 
-// PostgreSQL: a day partition of sample_chunks for `day` ("2026-08-18")
-// named as the historian names them; its table name.
-std::string make_day_partition(const std::string& location, const std::string& day) {
+// PostgreSQL: the UTC day `days_ago` days back ("2026-08-18") and its
+// partition of sample_chunks, made as the historian names them.
+struct PastDay {
+  std::string date, partition;
+};
+PastDay make_day_partition(const std::string& location, int days_ago) {
+  const std::string day = utc_days_ago(days_ago).substr(0, 10);
   const std::string name = "sample_chunks_d" + day.substr(0, 4) + day.substr(5, 2) + day.substr(8, 2);
   const std::string from = "CAST('" + day + " 00:00:00+00' AS timestamptz)";
   raw_run(location, "CREATE TABLE " + name + " PARTITION OF sample_chunks FOR VALUES FROM (" + from + ") TO (" + from +
                         " + interval '1 day')");
-  return name;
+  return {day, name};
 }
 
 std::int64_t tables_named(const std::string& location, const std::string& name) {
@@ -507,8 +511,8 @@ TEST_P(RetentionTest, OnPostgreSQLADayPartitionWithoutAKeptRunIsDroppedWholeAndK
   if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
   const auto& path = location();
   auto h = Historian::open(path);
-  const std::string day_a = utc_days_ago(100).substr(0, 10), day_b = utc_days_ago(101).substr(0, 10);
-  const std::string part_a = make_day_partition(path, day_a), part_b = make_day_partition(path, day_b);
+  const auto [day_a, part_a] = make_day_partition(path, 100);
+  const auto [day_b, part_b] = make_day_partition(path, 101);
   std::map<std::string, StoredRun> runs;
   // Day A: two plain runs of two pumps. Day B: a plain run, a reference
   // run and a run whose analysis is queued.
@@ -585,8 +589,7 @@ TEST_P(RetentionTest, OnPostgreSQLADaysFewKeptRunsMoveOutAndTheDayIsDroppedWhole
   if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
   const auto& path = location();
   auto h = Historian::open(path);
-  const std::string day = utc_days_ago(100).substr(0, 10);
-  const std::string part = make_day_partition(path, day);
+  const auto [day, part] = make_day_partition(path, 100);
   auto runs = a_day_with_three_kept_runs(h, path, day);
   ASSERT_EQ(raw_int(path, "SELECT count(*) FROM " + part), 36);
 
@@ -647,8 +650,8 @@ TEST_P(RetentionTest, OnPostgreSQLADayWhoseKeptRunsHoldMoreThanAQuarterOrWithARu
   if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
   const auto& path = location();
   auto h = Historian::open(path);
-  const std::string day_x = utc_days_ago(100).substr(0, 10), day_y = utc_days_ago(101).substr(0, 10);
-  const std::string part_x = make_day_partition(path, day_x), part_y = make_day_partition(path, day_y);
+  const auto [day_x, part_x] = make_day_partition(path, 100);
+  const auto [day_y, part_y] = make_day_partition(path, 101);
   // Day X: 3 plain runs of 23 200 bytes and a reference run of 24 000: just
   // over a quarter kept. Day Y: 3 plain runs and one still receiving.
   std::map<std::string, StoredRun> runs;
@@ -677,8 +680,7 @@ TEST_P(RetentionTest, OnPostgreSQLARunNeededOnceTheKeptRunsMovedKeepsTheDayForTh
   if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
   const auto& path = location();
   auto h = Historian::open(path);
-  const std::string day = utc_days_ago(100).substr(0, 10);
-  const std::string part = make_day_partition(path, day);
+  const auto [day, part] = make_day_partition(path, 100);
   auto runs = a_day_with_three_kept_runs(h, path, day);
   // Right after the sweep's first commit (the first run moved), another
   // server queues an analysis of P-7/p0: the drop's check, made again under
