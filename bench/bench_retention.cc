@@ -14,8 +14,10 @@
 //    (waiting for the write lock included) is what ingest waits.
 // 3. PostgreSQL only: the same N runs moved into a past day's partition,
 //    dropped whole by one sweep (its time is what ingest waits at most),
-//    and ingest beside that sweep. --pg URI: a database the bench may
-//    create the schema ambdiag_bench_retention in (dropped first).
+//    and ingest beside that sweep; then the same day with one run in 40
+//    kept (a queued job names it): moved to sample_chunks_kept first, then
+//    the day dropped whole. --pg URI: a database the bench may create the
+//    schema ambdiag_bench_retention in (dropped first).
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -150,16 +152,22 @@ double percentile(std::vector<double> v, double p) {
   return v[std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())))];
 }
 
+constexpr int kKeptEvery = 40;  // PostgreSQL's kept-run case: one run in 40 kept
+
 // One sweep of `runs` stored runs: cold (SQLite: the file's pages dropped
-// from the cache), or PostgreSQL's whole-partition drop (`partition`).
+// from the cache), or PostgreSQL's whole-partition drop (`partition`), with
+// every `kept_every`-th run kept (a queued analysis names it; 0: none).
 void sweep_rate(const Target& t, const std::vector<std::uint8_t>& data, int runs, std::size_t chunks_per_run, bool cold,
-                bool partition = false) {
+                bool partition = false, int kept_every = 0) {
   t.reset();
   {
     auto h = Historian::open(t.location());
     h.checkpoint_in_background();
-    for (int r = 0; r < runs; ++r)
-      store_run(h, "P-" + std::to_string(r % 4) + "/r" + std::to_string(r), "P-" + std::to_string(r % 4), data, chunks_per_run, 256);
+    for (int r = 0; r < runs; ++r) {
+      const std::string pump = "P-" + std::to_string(r % 4), run_id = pump + "/r" + std::to_string(r);
+      store_run(h, run_id, pump, data, chunks_per_run, 256);
+      if (kept_every && r % kept_every == 0) h.enqueue_job({"analysis", pump, run_id, 1, 0});
+    }
   }
   if (partition) t.age_into_past_partition();
   const auto stored = std::chrono::system_clock::now();
@@ -172,22 +180,29 @@ void sweep_rate(const Target& t, const std::vector<std::uint8_t>& data, int runs
   const auto r = h.sweep_retention(drop_received_before(stored), opt);
   const double wall = ambdiag::bench::wall_seconds() - w0, cpu = ambdiag::bench::cpu_seconds() - c0;
   const double mb = static_cast<double>(r.samples_bytes) / 1e6;
-  std::printf("sweep (%s, %s): %lld runs, %.0f MB dropped in %.2f s wall, %.2f s CPU: %.0f MB/s wall, %.0f MB per CPU-s; "
-              "%lld partitions whole, %lld transactions, longest %.1f ms, mean %.1f ms\n",
+  std::printf("sweep (%s, %s%s): %lld runs, %.0f MB dropped in %.2f s wall, %.2f s CPU: %.0f MB/s wall, %.0f MB per CPU-s; "
+              "%lld partitions whole, %lld runs (%.0f MB) moved out first, %lld transactions, longest %.1f ms, mean %.1f ms\n",
               t.postgres() ? "PostgreSQL" : "SQLite", partition ? "a day partition" : cold ? "cold" : "warm",
-              static_cast<long long>(r.samples_runs), mb, wall, cpu, mb / wall, mb / cpu,
-              static_cast<long long>(r.partitions), static_cast<long long>(r.transactions), 1e3 * r.longest_transaction_s,
+              kept_every ? (", 1 run in " + std::to_string(kept_every) + " kept").c_str() : "",
+              static_cast<long long>(r.samples_runs), mb, wall, cpu, mb / wall, mb / cpu, static_cast<long long>(r.partitions),
+              static_cast<long long>(r.moved_runs), static_cast<double>(r.moved_bytes) / 1e6,
+              static_cast<long long>(r.transactions), 1e3 * r.longest_transaction_s,
               1e3 * r.transactions_s / static_cast<double>(std::max<std::int64_t>(1, r.transactions)));
 }
 
 // The writer streams runs for `seconds`, one commit per 1 MiB; with
-// `sweep`, another connection sweeps `runs` older runs meanwhile.
+// `sweep`, another connection sweeps `runs` older runs meanwhile (every
+// `kept_every`-th kept, as in sweep_rate).
 void ingest_beside_sweep(const Target& t, const std::vector<std::uint8_t>& data, int runs, std::size_t chunks_per_run,
-                         double seconds, bool sweep, bool partition = false) {
+                         double seconds, bool sweep, bool partition = false, int kept_every = 0) {
   t.reset();
   {
     auto h = Historian::open(t.location());
-    for (int r = 0; r < runs; ++r) store_run(h, "P-9/old" + std::to_string(r), "P-9", data, chunks_per_run, 256);
+    for (int r = 0; r < runs; ++r) {
+      const std::string run_id = "P-9/old" + std::to_string(r);
+      store_run(h, run_id, "P-9", data, chunks_per_run, 256);
+      if (kept_every && r % kept_every == 0) h.enqueue_job({"analysis", "P-9", run_id, 1, 0});
+    }
   }
   if (partition) t.age_into_past_partition();
   const auto stored = std::chrono::system_clock::now();
@@ -217,15 +232,18 @@ void ingest_beside_sweep(const Target& t, const std::vector<std::uint8_t>& data,
     if (!sweep || (c.start >= sweep_from && c.start <= sweep_to)) times.push_back(c.seconds);
   const double window = sweep ? std::chrono::duration<double>(sweep_to - sweep_from).count() : seconds;
   const double mb = static_cast<double>(times.size()) * 32 * kChunkBytes / 1e6;
-  std::printf("ingest %s%s: %zu commits of 1 MiB in %.2f s (%.0f MB/s); commit time p50 %.1f ms, p99 %.1f ms, max %.1f ms\n",
-              sweep ? "while a sweep ran" : "alone            ", partition ? " (a day partition)" : "", times.size(), window, mb / std::max(1e-9, window),
+  std::printf("ingest %s%s%s: %zu commits of 1 MiB in %.2f s (%.0f MB/s); commit time p50 %.1f ms, p99 %.1f ms, max %.1f ms\n",
+              sweep ? "while a sweep ran" : "alone            ", partition ? " (a day partition" : "",
+              !partition ? "" : kept_every ? ", its kept runs moved first)" : ")", times.size(), window, mb / std::max(1e-9, window),
               1e3 * ambdiag::bench::median(times), 1e3 * percentile(times, 0.99), 1e3 * percentile(times, 1.0));
   if (sweep) {
     const double sweep_wall = window;
-    std::printf("  the sweep: %lld runs, %.0f MB in %.2f s (%.0f MB/s), %lld transactions, longest %.1f ms\n",
+    std::printf("  the sweep: %lld runs, %.0f MB in %.2f s (%.0f MB/s), %lld runs moved out first, %lld transactions, "
+                "longest %.1f ms\n",
                 static_cast<long long>(report.samples_runs), static_cast<double>(report.samples_bytes) / 1e6, sweep_wall,
                 static_cast<double>(report.samples_bytes) / 1e6 / std::max(1e-9, sweep_wall),
-                static_cast<long long>(report.transactions), 1e3 * report.longest_transaction_s);
+                static_cast<long long>(report.moved_runs), static_cast<long long>(report.transactions),
+                1e3 * report.longest_transaction_s);
   }
 }
 
@@ -267,6 +285,8 @@ int main(int argc, char** argv) {
   if (t.postgres()) {
     sweep_rate(t, data, runs, chunks_per_run, false, true);
     ingest_beside_sweep(t, data, runs, chunks_per_run, seconds, true, true);
+    sweep_rate(t, data, runs, chunks_per_run, false, true, kKeptEvery);
+    ingest_beside_sweep(t, data, runs, chunks_per_run, seconds, true, true, kKeptEvery);
     t.sql(std::string("DROP SCHEMA ") + Target::kSchema + " CASCADE", false);
   } else {
     t.reset();

@@ -109,10 +109,11 @@ int run_db_retention(const std::vector<std::string>& argv) {
     for (const auto& run : r.runs)
       std::printf("%-8s %-40s %10.3f MB  %s\n", run.what.c_str(), run.run_id.c_str(), static_cast<double>(run.bytes) / 1e6,
                   run.reason.c_str());
-    std::printf("%s the samples of %lld runs (%.1f MB), %lld day partitions whole, the FRFs of %lld runs (%.1f MB), "
-                "%lld monitoring snapshots; %.2f s, longest transaction %.3f s\n",
+    std::printf("%s the samples of %lld runs (%.1f MB), %lld day partitions whole (%lld kept runs, %.1f MB, moved out "
+                "first), the FRFs of %lld runs (%.1f MB), %lld monitoring snapshots; %.2f s, longest transaction %.3f s\n",
                 opt.dry_run ? "would drop" : "dropped", static_cast<long long>(r.samples_runs),
                 static_cast<double>(r.samples_bytes) / 1e6, static_cast<long long>(r.partitions),
+                static_cast<long long>(r.moved_runs), static_cast<double>(r.moved_bytes) / 1e6,
                 static_cast<long long>(r.frf_runs), static_cast<double>(r.frf_bytes) / 1e6,
                 static_cast<long long>(r.monitoring_rows), r.seconds, r.longest_transaction_s);
   }

@@ -222,7 +222,9 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
   PutResult result;
   std::int64_t frames = 0;
   // PostgreSQL's chunks carry their run's created_at, the time they are
-  // partitioned by (pg_schema.cc). No conflict target: the key is
+  // partitioned by (pg_schema.cc), or the kept partition's time once
+  // retention moved the run's chunks there: a re-sent chunk then meets the
+  // one held (same key) and is a duplicate. No conflict target: the key is
   // (run_id, seq) in SQLite, (run_id, seq, run_created_at) in PostgreSQL.
   auto& ins = impl_->dialect() == Dialect::postgres
                   ? impl_->stmt(
@@ -233,7 +235,7 @@ PutResult Historian::put_chunks(const std::string& run_id, std::span<const Chunk
                         "ON CONFLICT (run_id, seq) DO NOTHING");
   for (const auto& c : chunks) {
     ins.bind(1, run_id).bind(2, c.seq).bind(3, c.first_frame).bind(4, c.n_frames).bind_blob(5, c.bytes);
-    if (impl_->dialect() == Dialect::postgres) ins.bind(6, st.created_at);
+    if (impl_->dialect() == Dialect::postgres) ins.bind(6, st.chunks_at);
     ins.send();
   }
   const auto inserted = ins.sent();

@@ -31,6 +31,12 @@ std::string hex64(std::uint64_t v);
 RunStatus status_from_text(const std::string& s);
 inline std::string quoted(const std::string& id) { return "'" + id + "'"; }
 
+// PostgreSQL: the run_created_at of the chunks retention moved out of their
+// day's partition into sample_chunks_kept (pg_schema.cc v10: its range ends
+// at 1900-01-01, before any reception time), in created_at's format. A
+// macro, to be part of SQL literals.
+#define AMBDIAG_KEPT_CHUNKS_AT "1800-01-01T00:00:00.000Z"
+
 struct Historian::Impl {
   std::unique_ptr<detail::Connection> conn;
   detail::Connection& db;  // *conn
@@ -119,7 +125,10 @@ struct Historian::Impl {
     RunStatus status;
     std::optional<std::int64_t> expected_frames;
     std::optional<std::uint64_t> expected_checksum;
-    std::string created_at;  // the time PostgreSQL's sample_chunks are partitioned by
+    // PostgreSQL: the run_created_at its chunks carry (sample_chunks'
+    // partition key): its created_at, or AMBDIAG_KEPT_CHUNKS_AT once
+    // retention moved them to sample_chunks_kept.
+    std::string chunks_at;
     std::optional<std::string> samples_dropped_at;  // retention dropped (or is dropping) the samples
   };
   // `write`: called inside a write transaction that acts on the state, which
@@ -127,9 +136,12 @@ struct Historian::Impl {
   // mark_incomplete of one run take turns).
   RunState run_state(const std::string& run_id, const char* what, bool write = false) {
     if (write) lock(LockSpace::run, run_id);
-    auto& s = stmt(
-        "SELECT n_channels, status, expected_frames, expected_checksum, created_at, samples_dropped_at FROM runs "
-        "WHERE run_id = ?");
+#define AMBDIAG_RUN_STATE_SQL(CHUNKS_AT) \
+  "SELECT n_channels, status, expected_frames, expected_checksum, " CHUNKS_AT ", samples_dropped_at FROM runs WHERE run_id = ?"
+    auto& s = dialect() == Dialect::postgres
+                  ? stmt(AMBDIAG_RUN_STATE_SQL("CASE WHEN samples_kept_at IS NULL THEN created_at ELSE '" AMBDIAG_KEPT_CHUNKS_AT "' END"))
+                  : stmt(AMBDIAG_RUN_STATE_SQL("created_at"));  // a file has no samples_kept_at (schema.cc v10)
+#undef AMBDIAG_RUN_STATE_SQL
     s.bind(1, run_id);
     if (!s.step()) throw InputError(std::string(what) + ": unknown run " + quoted(run_id));
     RunState st{static_cast<int>(s.col_int(0)), status_from_text(s.col_text(1)), s.col_opt_int(2), std::nullopt,

@@ -6,8 +6,9 @@
 // transactions of at most max_bytes_per_transaction: the first marks the run
 // `dropping` (from then on it reads as dropped), the last `dropped`; a drop a
 // crash interrupted is finished by the next sweep. On PostgreSQL a day
-// partition of sample_chunks none of whose runs is kept goes whole first
-// (drop_partitions), in one transaction with its runs' marks.
+// partition of sample_chunks goes whole first (drop_partitions), in one
+// transaction with its runs' marks, once its kept runs (at most a quarter
+// of its bytes) are moved to sample_chunks_kept (schema v10).
 #include <unistd.h>
 
 #include <algorithm>
@@ -151,90 +152,167 @@ class Sweep {
     if (p.monitoring_days) monitoring(pump_id, *p.monitoring_days);
   }
 
-  // PostgreSQL: each past day partition of sample_chunks none of whose
-  // runs is kept (every run in it is past its pump's samples_days, not
-  // needed, not receiving, or already dropped) is dropped whole, its runs
-  // marked dropped with their bytes in the same transaction. That
-  // transaction holds sample_chunks and runs exclusively (DROP needs both,
-  // runs for the foreign key), so new ingest transactions wait for its
-  // length. A partition with a kept run stays; its other runs go row by
-  // row in pump().
+  // PostgreSQL: each past day partition of sample_chunks goes whole once
+  // none of its runs is receiving and the runs it keeps (needed, or kept by
+  // their pump's policy: younger than its samples_days, or no samples_days)
+  // hold at most a quarter of its bytes. Those are moved to
+  // sample_chunks_kept first, a transaction each (move_to_kept); then one
+  // transaction marks the partition's other runs dropped with their bytes
+  // and drops it (drop_day). A day whose kept runs hold more stays: its
+  // other runs go row by row in pump(), as moving most of a day would cost
+  // more than deleting the rest.
   void drop_partitions(const std::map<std::string, RetentionPolicy>& policies) {
     std::map<std::string, std::string> cutoff;  // pump -> created_at before which its samples go
+    std::string latest;  // the latest cutoff: every policy keeps a run received at or after it
     for (const auto& [pump_id, p] : policies)
-      if (p.samples_days) cutoff[pump_id] = utc_ms(days_before(opt_.now, *p.samples_days));
+      if (p.samples_days) latest = std::max(latest, cutoff[pump_id] = utc_ms(days_before(opt_.now, *p.samples_days)));
     const std::string now = utc_ms(SystemClock::now());
     for (const auto& part : impl_.chunk_partitions()) {
       if (part.to > now) break;  // its day is not over: a run may still be received into it
       if (!go_on()) return;
-      if (!partition_droppable(part, cutoff)) continue;
-      std::vector<SweptRun> dropped;
-      bool done = false;
-      std::string why;
-      // The locks are tried, never waited for: ingest holds runs and
-      // sample_chunks in either order (a batch updates one run, then
-      // inserts the next run's chunks), so a sweep waiting for one while
-      // holding the other could deadlock with it. Tried again every 20 ms
-      // for up to 5 s, then left to the next sweep.
-      for (const auto until = SteadyClock::now() + std::chrono::seconds(5); !done;) {
-        try {
-          dropped.clear();
-          done = write([&] {
-            impl_.db.exec("LOCK TABLE sample_chunks IN ACCESS EXCLUSIVE MODE NOWAIT", "lock sample_chunks");
-            impl_.db.exec("LOCK TABLE runs IN ACCESS EXCLUSIVE MODE NOWAIT", "lock runs");  // DROP's foreign key
-            if (!partition_droppable(part, cutoff)) return false;  // changed since the plan
-            const std::string sql =
-                "WITH b AS (SELECT run_id, CAST(sum(length(data)) AS bigint) AS n FROM " + part.name +
-                " GROUP BY run_id) UPDATE runs SET samples_state = 'dropped', samples_dropped_at = "
-                "coalesce(samples_dropped_at, ?), samples_dropped_bytes = samples_dropped_bytes + coalesce((SELECT n "
-                "FROM b WHERE b.run_id = runs.run_id), 0) WHERE samples_state <> 'dropped' AND (created_at >= ? AND "
-                "created_at < ? OR run_id IN (SELECT run_id FROM b)) RETURNING run_id, pump_id, coalesce((SELECT n FROM "
-                "b WHERE b.run_id = runs.run_id), 0)";
-            auto mark = impl_.db.prepare(sql.c_str(), Fetch::all);
-            const std::string at = utc_ms(SystemClock::now());  // bound by reference until the step
-            mark->bind(1, at).bind(2, part.from).bind(3, part.to);
-            while (mark->step()) dropped.push_back({mark->col_text(0), mark->col_text(1), "samples", mark->col_int(2), "age"});
-            mark.reset();
-            impl_.db.exec(("DROP TABLE " + part.name).c_str(), "drop a day partition of sample_chunks");
-            return true;
-          });
-          if (!done) break;  // a run of it is kept now
-        } catch (const StorageError& e) {
-          why = e.what();
-          const bool busy = why.find("55P03") != std::string::npos;  // lock_not_available
-          if (!busy || SteadyClock::now() > until || !go_on()) break;
-          std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        }
+      // Every run of a day from `latest` on is kept: such a partition with
+      // chunks stays, without a look at its runs.
+      if (part.from >= latest && holds_chunks(part)) continue;
+      const DayPlan plan = plan_day(part, cutoff);
+      if (plan.receiving || plan.kept_bytes * 4 > plan.bytes) continue;
+      for (const auto& run : plan.kept) {
+        if (!go_on()) return;
+        move_to_kept(run);
       }
-      if (!done) {
-        if (!why.empty()) r_.errors.push_back("partition " + part.name + " not dropped (left to the next sweep): " + why);
-        continue;
-      }
-      ++r_.partitions;
-      for (auto& run : dropped) {
-        r_.samples_bytes += run.bytes;
-        record(run);
-      }
+      if (!go_on()) return;
+      drop_day(part, cutoff);
     }
   }
 
  private:
-  // Every run of the partition's day, or with chunks in it, is dropped
-  // already or may be dropped now by age.
-  bool partition_droppable(const Historian::Impl::ChunkPartition& part, const std::map<std::string, std::string>& cutoff) {
+  struct KeptRun {
+    std::string run_id;
+    std::int64_t bytes;
+  };
+  // A day partition's runs (those received that day whose chunks were not
+  // moved, and any with chunks in it) that are not dropped yet.
+  struct DayPlan {
+    bool receiving = false;      // one of them is: the day stays
+    std::vector<KeptRun> kept;   // needed, or kept by the pump's policy
+    std::int64_t kept_bytes = 0;  // theirs
+    std::int64_t bytes = 0;      // all of them (received_frames * n_channels * 4; a `dropping` run's too)
+  };
+
+  DayPlan plan_day(const Historian::Impl::ChunkPartition& part, const std::map<std::string, std::string>& cutoff) {
     const std::string sql =
-        "SELECT pump_id, created_at, samples_state, status, " AMBDIAG_RUN_NEEDED("runs.run_id") " FROM runs WHERE "
-        "samples_state <> 'dropped' AND (created_at >= ? AND created_at < ? OR run_id IN (SELECT DISTINCT run_id FROM " +
-        part.name + "))";
+        "SELECT run_id, pump_id, created_at, samples_state, status, " AMBDIAG_RUN_NEEDED("runs.run_id") ", "
+        "received_frames * n_channels * 4 FROM runs WHERE samples_state <> 'dropped' AND run_id IN (" +
+        day_runs(part.name) + ")";
     auto s = impl_.db.prepare(sql.c_str(), Fetch::all);
     s->bind(1, part.from).bind(2, part.to);
+    DayPlan plan;
     while (s->step()) {
-      if (s->col_text(2) == "dropping") continue;  // already reads as dropped
-      const auto c = cutoff.find(s->col_text(0));
-      if (s->col_text(3) == "receiving" || s->col_int(4) != 0 || c == cutoff.end() || !(s->col_text(1) < c->second))
-        return false;
+      const std::int64_t bytes = s->col_int(6);
+      plan.bytes += bytes;
+      if (s->col_text(3) == "dropping") continue;  // already reads as dropped
+      if (s->col_text(4) == "receiving") plan.receiving = true;
+      const auto c = cutoff.find(s->col_text(1));
+      if (s->col_int(5) != 0 || c == cutoff.end() || !(s->col_text(2) < c->second)) {
+        plan.kept.push_back({s->col_text(0), bytes});
+        plan.kept_bytes += bytes;
+      }
     }
-    return true;
+    return plan;
+  }
+
+  // SQL: the run_ids of the runs received on the partition's day (?1, ?2)
+  // whose chunks are still in it, and of any run with chunks in `chunks`
+  // (the partition, or a set of its rows).
+  static std::string day_runs(const std::string& chunks) {
+    return "SELECT run_id FROM runs WHERE created_at >= ?1 AND created_at < ?2 AND samples_kept_at IS NULL UNION "
+           "SELECT run_id FROM " + chunks;
+  }
+
+  bool holds_chunks(const Historian::Impl::ChunkPartition& part) {
+    auto s = impl_.db.prepare(("SELECT count(*) FROM (SELECT 1 FROM " + part.name + " LIMIT 1) x").c_str(), Fetch::all);
+    return s->step() && s->col_int(0) > 0;
+  }
+
+  // One transaction: the run (not receiving, its samples held, not moved
+  // yet) marked samples_kept_at and its chunks given the kept partition's
+  // time, which PostgreSQL (>= 11) carries out as a move of the rows to
+  // sample_chunks_kept. Row locks only: ingest of other runs goes on; the
+  // run's own lock keeps its put_chunks (which reads samples_kept_at for
+  // the key) before or after.
+  void move_to_kept(const KeptRun& run) {
+    write([&] {
+      impl_.lock(Historian::Impl::LockSpace::run, run.run_id);
+      impl_.stmt("UPDATE runs SET samples_kept_at = ? WHERE run_id = ? AND samples_state = 'held' AND status <> 'receiving' "
+                 "AND samples_kept_at IS NULL")
+          .bind(1, utc_ms(SystemClock::now()))
+          .bind(2, run.run_id)
+          .run();
+      if (impl_.db.changes() != 1) return false;  // changed since the plan: drop_day's check sees it
+      impl_.stmt("UPDATE sample_chunks SET run_created_at = CAST('" AMBDIAG_KEPT_CHUNKS_AT "' AS timestamptz) WHERE run_id = ?")
+          .bind(1, run.run_id)
+          .run();
+      ++r_.moved_runs;
+      r_.moved_bytes += run.bytes;
+      return true;
+    });
+  }
+
+  // The partition's drop, once its kept runs are moved: its runs marked
+  // dropped with their bytes and DROP TABLE in one transaction. That
+  // transaction holds sample_chunks and runs exclusively (DROP needs both,
+  // runs for the foreign key), so new ingest transactions wait for its
+  // length. Inside it the plan is made again: a run kept or receiving now
+  // (a job queued, a reference set since the moves) keeps the partition
+  // for the next sweep, which moves it.
+  void drop_day(const Historian::Impl::ChunkPartition& part, const std::map<std::string, std::string>& cutoff) {
+    std::vector<SweptRun> dropped;
+    bool done = false;
+    std::string why;
+    // The locks are tried, never waited for: ingest holds runs and
+    // sample_chunks in either order (a batch updates one run, then
+    // inserts the next run's chunks), so a sweep waiting for one while
+    // holding the other could deadlock with it. Tried again every 20 ms
+    // for up to 5 s, then left to the next sweep.
+    for (const auto until = SteadyClock::now() + std::chrono::seconds(5); !done;) {
+      try {
+        dropped.clear();
+        done = write([&] {
+          impl_.db.exec("LOCK TABLE sample_chunks IN ACCESS EXCLUSIVE MODE NOWAIT", "lock sample_chunks");
+          impl_.db.exec("LOCK TABLE runs IN ACCESS EXCLUSIVE MODE NOWAIT", "lock runs");  // DROP's foreign key
+          const DayPlan plan = plan_day(part, cutoff);
+          if (plan.receiving || !plan.kept.empty()) return false;  // changed since the plan
+          // Moved runs are not the day's any more (day_runs): not marked.
+          const std::string sql =
+              "WITH b AS (SELECT run_id, CAST(sum(length(data)) AS bigint) AS n FROM " + part.name +
+              " GROUP BY run_id) UPDATE runs SET samples_state = 'dropped', samples_dropped_at = "
+              "coalesce(samples_dropped_at, ?3), samples_dropped_bytes = samples_dropped_bytes + coalesce((SELECT n "
+              "FROM b WHERE b.run_id = runs.run_id), 0) WHERE samples_state <> 'dropped' AND run_id IN (" +
+              day_runs("b") + ") RETURNING run_id, pump_id, coalesce((SELECT n FROM b WHERE b.run_id = runs.run_id), 0)";
+          auto mark = impl_.db.prepare(sql.c_str(), Fetch::all);
+          const std::string at = utc_ms(SystemClock::now());  // bound by reference until the step
+          mark->bind(1, part.from).bind(2, part.to).bind(3, at);
+          while (mark->step()) dropped.push_back({mark->col_text(0), mark->col_text(1), "samples", mark->col_int(2), "age"});
+          mark.reset();
+          impl_.db.exec(("DROP TABLE " + part.name).c_str(), "drop a day partition of sample_chunks");
+          return true;
+        });
+        if (!done) break;  // a run of it is kept now
+      } catch (const StorageError& e) {
+        why = e.what();
+        const bool busy = why.find("55P03") != std::string::npos;  // lock_not_available
+        if (!busy || SteadyClock::now() > until || !go_on()) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    }
+    if (!done) {
+      if (!why.empty()) r_.errors.push_back("partition " + part.name + " not dropped (left to the next sweep): " + why);
+      return;
+    }
+    ++r_.partitions;
+    for (auto& run : dropped) {
+      r_.samples_bytes += run.bytes;
+      record(run);
+    }
   }
 
   // The pump's runs whose samples the policy no longer keeps, oldest first

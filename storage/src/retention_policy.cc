@@ -77,6 +77,7 @@ json to_json(const SweepReport& r, bool with_runs) {
             {"frf", {{"runs", r.frf_runs}, {"bytes", r.frf_bytes}}},
             {"monitoring_rows", r.monitoring_rows},
             {"partitions", r.partitions},
+            {"moved", {{"runs", r.moved_runs}, {"bytes", r.moved_bytes}}},
             {"transactions", r.transactions},
             {"transactions_s", r.transactions_s},
             {"longest_transaction_s", r.longest_transaction_s},

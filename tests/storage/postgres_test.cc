@@ -129,7 +129,7 @@ TEST_F(PostgresTest, ChunksLandInThePartitionedTableWithTheirRunsTime) {
                    "SELECT count(*) FROM sample_chunks c JOIN runs r USING (run_id) WHERE c.run_created_at = "
                    "CAST(r.created_at AS timestamptz)"),
             "3");
-  for (const std::string& table : {std::string("sample_chunks_default"), part})
+  for (const std::string& table : {std::string("sample_chunks_default"), std::string("sample_chunks_kept"), part})
     EXPECT_EQ(pg_sql(location_, "SELECT attstorage FROM pg_attribute WHERE attrelid = '" + table +
                                     "'::regclass AND attname = 'data'"),
               "e")

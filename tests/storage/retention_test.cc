@@ -3,7 +3,8 @@
 // queued or running job names, runs still receiving), FRFs after samples,
 // monitoring, idempotency, the lease, a sweep stopped half way, and what a
 // dropped run looks like to readers and writers; on PostgreSQL a day
-// partition dropped whole.
+// partition dropped whole, its few kept runs moved to sample_chunks_kept
+// first (schema v10).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -48,14 +49,18 @@ Historian with_one_old_run(const std::string& path) {
   return h;
 }
 
-// PostgreSQL: a day partition of sample_chunks for `day` ("2026-08-18")
-// named as the historian names them; its table name.
-std::string make_day_partition(const std::string& location, const std::string& day) {
+// PostgreSQL: the UTC day `days_ago` days back ("2026-08-18") and its
+// partition of sample_chunks, made as the historian names them.
+struct PastDay {
+  std::string date, partition;
+};
+PastDay make_day_partition(const std::string& location, int days_ago) {
+  const std::string day = utc_days_ago(days_ago).substr(0, 10);
   const std::string name = "sample_chunks_d" + day.substr(0, 4) + day.substr(5, 2) + day.substr(8, 2);
   const std::string from = "CAST('" + day + " 00:00:00+00' AS timestamptz)";
   raw_run(location, "CREATE TABLE " + name + " PARTITION OF sample_chunks FOR VALUES FROM (" + from + ") TO (" + from +
                         " + interval '1 day')");
-  return name;
+  return {day, name};
 }
 
 std::int64_t tables_named(const std::string& location, const std::string& name) {
@@ -68,6 +73,32 @@ std::vector<std::string> dropped_ids(const SweepReport& r, const std::string& wh
   for (const auto& s : r.runs)
     if (s.what == what) out.push_back(s.run_id);
   return out;
+}
+
+// The runs whose samples the sweep dropped, by id.
+std::vector<std::string> sorted_dropped_ids(const SweepReport& r) {
+  auto ids = dropped_ids(r);
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+// The run's samples read back as stored: byte for byte and by the checksum
+// its end gave.
+void expect_samples_intact(Historian& h, const StoredRun& run) {
+  const std::string read = h.read_samples(run.run_id);
+  EXPECT_EQ(read, ambdiag::testing::as_string(run.bytes)) << run.run_id;
+  EXPECT_EQ(fnv1a64(read.data(), read.size()), h.find_run(run.run_id)->expected_checksum) << run.run_id;
+}
+
+// PostgreSQL: the run's chunks are in sample_chunks_kept (all of them) and
+// it says so, or neither.
+void expect_moved(const std::string& location, const std::string& run_id, bool moved) {
+  const std::string id = "'" + run_id + "'";
+  EXPECT_EQ(raw_int(location, "SELECT count(*) FROM sample_chunks_kept WHERE run_id = " + id),
+            moved ? chunks_held(location, run_id) : 0)
+      << run_id;
+  EXPECT_EQ(raw_int(location, "SELECT count(*) FROM runs WHERE samples_kept_at IS NOT NULL AND run_id = " + id), moved ? 1 : 0)
+      << run_id;
 }
 
 TEST(RetentionPolicy, KeysOverrideTheBaseAndNullKeepsForEver) {
@@ -270,9 +301,7 @@ TEST_P(RetentionTest, NeverDropsReferenceRunsRunsOfOpenAlarmsOrPendingJobsOrRuns
   for (const auto& r : h.list_runs("P-7")) received_days_ago(path, r.run_id, 400);
 
   const auto r = h.sweep_retention(samples_for_days(1));
-  std::vector<std::string> got = dropped_ids(r);
-  std::sort(got.begin(), got.end());
-  EXPECT_EQ(got, (std::vector<std::string>{"P-7/closed", "P-7/done"}));
+  EXPECT_EQ(sorted_dropped_ids(r), (std::vector<std::string>{"P-7/closed", "P-7/done"}));
   for (const char* kept : {"P-7/ref1", "P-7/ref2", "P-7/plain", "P-7/alarm", "P-7/queued", "P-7/running", "P-7/receiving"})
     EXPECT_EQ(samples_state(h, kept), "held") << kept;
   EXPECT_EQ(chunks_held(path, "P-7/receiving"), 1);
@@ -482,8 +511,8 @@ TEST_P(RetentionTest, OnPostgreSQLADayPartitionWithoutAKeptRunIsDroppedWholeAndK
   if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
   const auto& path = location();
   auto h = Historian::open(path);
-  const std::string day_a = utc_days_ago(100).substr(0, 10), day_b = utc_days_ago(101).substr(0, 10);
-  const std::string part_a = make_day_partition(path, day_a), part_b = make_day_partition(path, day_b);
+  const auto [day_a, part_a] = make_day_partition(path, 100);
+  const auto [day_b, part_b] = make_day_partition(path, 101);
   std::map<std::string, StoredRun> runs;
   // Day A: two plain runs of two pumps. Day B: a plain run, a reference
   // run and a run whose analysis is queued.
@@ -500,9 +529,7 @@ TEST_P(RetentionTest, OnPostgreSQLADayPartitionWithoutAKeptRunIsDroppedWholeAndK
   EXPECT_EQ(r.partitions, 1);
   EXPECT_EQ(tables_named(path, part_a), 0) << "day A's partition is gone";
   EXPECT_EQ(tables_named(path, part_b), 1) << "day B holds kept runs";
-  auto got = dropped_ids(r);
-  std::sort(got.begin(), got.end());
-  EXPECT_EQ(got, (std::vector<std::string>{"P-7/a1", "P-7/b1", "P-8/a2"}));
+  EXPECT_EQ(sorted_dropped_ids(r), (std::vector<std::string>{"P-7/a1", "P-7/b1", "P-8/a2"}));
   EXPECT_EQ(r.samples_bytes, static_cast<std::int64_t>(runs["P-7/a1"].bytes.size() + runs["P-8/a2"].bytes.size() +
                                                        runs["P-7/b1"].bytes.size()));
   for (const char* id : {"P-7/a1", "P-8/a2", "P-7/b1"}) {
@@ -526,6 +553,184 @@ TEST_P(RetentionTest, OnPostgreSQLADayPartitionWithoutAKeptRunIsDroppedWholeAndK
   EXPECT_EQ(again.partitions, 0);
   const auto fresh = store_run(h, "P-7/new", "P-7", 1000, 9);
   EXPECT_EQ(ambdiag::testing::as_string(fresh.bytes), h.read_samples("P-7/new"));
+}
+
+// 12 runs of 24 000 bytes received on `day` at noon: p0..p8 of P-7
+// (plain), P-7/ref (a reference run), P-7/alarm (an open alarm's) and
+// P-9/forever (its pump keeps samples for ever). The 3 kept runs hold
+// exactly a quarter of the day's bytes.
+std::map<std::string, StoredRun> a_day_with_three_kept_runs(Historian& h, const std::string& location, const std::string& day) {
+  std::map<std::string, StoredRun> runs;
+  for (unsigned i = 0; i < 9; ++i) {
+    const std::string id = "P-7/p" + std::to_string(i);
+    runs[id] = store_run(h, id, "P-7", 3000, i);
+  }
+  runs["P-7/ref"] = store_run(h, "P-7/ref", "P-7", 3000, 20, 1000, true);
+  runs["P-7/alarm"] = store_run(h, "P-7/alarm", "P-7", 3000, 21);
+  runs["P-9/forever"] = store_run(h, "P-9/forever", "P-9", 3000, 22);
+  h.put_reference("P-7", {"P-7/ref"}, "erin");
+  AlarmChanges c;
+  c.pump_id = "P-7";
+  c.alarms.push_back(ambdiag::testing::open_alarm("P-7", "rule-a"));
+  c.alarms.back().run_id = "P-7/alarm";
+  h.apply_alarm_changes(c);
+  h.put_retention_policy("P-9", R"({"samples_days": null})", "erin");
+  for (const auto& [id, run] : runs) received_at(location, id, day + "T12:00:00.000Z");
+  return runs;
+}
+
+std::vector<std::string> plain_runs(int n) {
+  std::vector<std::string> ids;
+  for (int i = 0; i < n; ++i) ids.push_back("P-7/p" + std::to_string(i));
+  return ids;
+}
+
+TEST_P(RetentionTest, OnPostgreSQLADaysFewKeptRunsMoveOutAndTheDayIsDroppedWhole) {
+  if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
+  const auto& path = location();
+  auto h = Historian::open(path);
+  const auto [day, part] = make_day_partition(path, 100);
+  auto runs = a_day_with_three_kept_runs(h, path, day);
+  ASSERT_EQ(raw_int(path, "SELECT count(*) FROM " + part), 36);
+
+  const auto r = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(r.partitions, 1);
+  EXPECT_EQ(tables_named(path, part), 0) << "the day went whole";
+  EXPECT_EQ(r.moved_runs, 3);
+  EXPECT_EQ(r.moved_bytes, 3 * 24000);
+  EXPECT_EQ(sorted_dropped_ids(r), plain_runs(9)) << "only the plain runs are marked dropped";
+  EXPECT_EQ(r.samples_bytes, 9 * 24000);
+  for (const auto& id : plain_runs(9)) {
+    EXPECT_EQ(h.find_run(id)->samples_dropped_bytes, 24000) << id;
+    expect_moved(path, id, false);
+  }
+  for (const char* id : {"P-7/ref", "P-7/alarm", "P-9/forever"}) {
+    EXPECT_EQ(samples_state(h, id), "held") << id;
+    expect_moved(path, id, true);
+    expect_samples_intact(h, runs[id]);
+  }
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM sample_chunks_kept"), 9);
+
+  // An agent re-sending a moved run: the same chunks are duplicates, other
+  // bytes are refused, nothing lands anywhere else.
+  const auto& ref = runs["P-7/ref"];
+  const auto again = h.put_chunks(ref.run_id, ambdiag::testing::cut_chunks(ref.bytes, 2, 1000));
+  EXPECT_EQ(again.duplicates, 3);
+  EXPECT_EQ(again.stored, 0);
+  auto other = ref.bytes;
+  other[5] ^= 0x40;
+  const std::string refused = error_of([&] { h.put_chunks(ref.run_id, ambdiag::testing::cut_chunks(other, 2, 1000)); });
+  EXPECT_NE(refused.find("chunk seq 0: already held with other frames or bytes"), std::string::npos) << refused;
+  EXPECT_EQ(chunks_held(path, ref.run_id), 3);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM sample_chunks_default"), 0);
+  expect_samples_intact(h, ref);
+
+  const auto idle = h.sweep_retention(samples_for_days(30));
+  EXPECT_TRUE(idle.runs.empty());
+  EXPECT_EQ(idle.partitions + idle.moved_runs, 0);
+
+  // No call removes a reference version (each keeps its runs): its row goes
+  // behind the historian's back. P-9 falls back to the 30 days. Those two
+  // runs then go row by row out of the kept partition; the alarm's stays.
+  raw_run(path, "DELETE FROM reference_runs WHERE run_id = 'P-7/ref'");
+  h.put_retention_policy("P-9", "{}", "erin");
+  const auto later = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(sorted_dropped_ids(later), (std::vector<std::string>{"P-7/ref", "P-9/forever"}));
+  EXPECT_EQ(later.partitions, 0);
+  EXPECT_EQ(later.samples_bytes, 2 * 24000);
+  for (const char* id : {"P-7/ref", "P-9/forever"}) {
+    EXPECT_EQ(chunks_held(path, id), 0) << id;
+    EXPECT_EQ(h.find_run(id)->samples_dropped_bytes, 24000) << id;
+  }
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM sample_chunks_kept"), 3);
+  expect_samples_intact(h, runs["P-7/alarm"]);
+}
+
+TEST_P(RetentionTest, OnPostgreSQLADayWhoseKeptRunsHoldMoreThanAQuarterOrWithARunReceivingStays) {
+  if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
+  const auto& path = location();
+  auto h = Historian::open(path);
+  const auto [day_x, part_x] = make_day_partition(path, 100);
+  const auto [day_y, part_y] = make_day_partition(path, 101);
+  // Day X: 3 plain runs of 23 200 bytes and a reference run of 24 000: just
+  // over a quarter kept. Day Y: 3 plain runs and one still receiving.
+  std::map<std::string, StoredRun> runs;
+  for (unsigned i = 0; i < 3; ++i) runs["P-7/x" + std::to_string(i)] = store_run(h, "P-7/x" + std::to_string(i), "P-7", 2900, i);
+  runs["P-7/xref"] = store_run(h, "P-7/xref", "P-7", 3000, 9, 1000, true);
+  h.put_reference("P-7", {"P-7/xref"}, "erin");
+  for (unsigned i = 0; i < 3; ++i) runs["P-8/y" + std::to_string(i)] = store_run(h, "P-8/y" + std::to_string(i), "P-8", 3000, i);
+  h.begin_run(run_header_from_json(ambdiag::testing::run_json_text("P-8/receiving", 2, "P-8")));
+  h.put_chunks("P-8/receiving", ambdiag::testing::cut_chunks(ambdiag::testing::samples_bytes(500, 2, 3), 2, 500));
+  for (const auto& [id, run] : runs) received_at(path, id, (id.starts_with("P-7/") ? day_x : day_y) + "T12:00:00.000Z");
+  received_at(path, "P-8/receiving", day_y + "T12:00:00.000Z");
+
+  const auto r = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(r.partitions, 0);
+  EXPECT_EQ(r.moved_runs, 0);
+  EXPECT_EQ(tables_named(path, part_x) + tables_named(path, part_y), 2);
+  EXPECT_EQ(sorted_dropped_ids(r), (std::vector<std::string>{"P-7/x0", "P-7/x1", "P-7/x2", "P-8/y0", "P-8/y1", "P-8/y2"}))
+      << "the days' other runs go row by row";
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM " + part_x), 3) << "the reference run's chunks stay in their day";
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM " + part_y), 1) << "the receiving run's";
+  expect_moved(path, "P-7/xref", false);
+  expect_samples_intact(h, runs["P-7/xref"]);
+}
+
+TEST_P(RetentionTest, OnPostgreSQLARunNeededOnceTheKeptRunsMovedKeepsTheDayForTheNextSweep) {
+  if (!postgres()) GTEST_SKIP() << "day partitions are PostgreSQL's";
+  const auto& path = location();
+  auto h = Historian::open(path);
+  const auto [day, part] = make_day_partition(path, 100);
+  auto runs = a_day_with_three_kept_runs(h, path, day);
+  // Right after the sweep's first commit (the first run moved), another
+  // server queues an analysis of P-7/p0: the drop's check, made again under
+  // its locks, sees it.
+  auto other = Historian::open(path);
+  SweepOptions opt;
+  bool queued = false;
+  opt.after_commit = [&] {
+    if (queued) return;
+    other.enqueue_job({"analysis", "P-7", "P-7/p0", 1, 0});
+    queued = true;
+  };
+  const auto r = h.sweep_retention(samples_for_days(30), opt);
+  EXPECT_EQ(r.partitions, 0);
+  EXPECT_EQ(tables_named(path, part), 1) << "kept for the next sweep";
+  EXPECT_EQ(r.moved_runs, 3);
+  const auto rest = plain_runs(9);
+  EXPECT_EQ(sorted_dropped_ids(r), std::vector<std::string>(rest.begin() + 1, rest.end())) << "the others went row by row";
+  expect_moved(path, "P-7/p0", false);
+  EXPECT_EQ(samples_state(h, "P-7/p0"), "held");
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM " + part), 3) << "only P-7/p0's chunks are left in the day";
+
+  // Its job done, the next sweep drops the day whole, P-7/p0 with it; the
+  // moved runs stay held.
+  const auto job = h.claim_job("w");
+  ASSERT_EQ(job->key.run_id, "P-7/p0");
+  h.finish_job(job->job_id, job->attempts, "{}");
+  const auto next = h.sweep_retention(samples_for_days(30));
+  EXPECT_EQ(next.partitions, 1);
+  EXPECT_EQ(next.moved_runs, 0);
+  EXPECT_EQ(dropped_ids(next), std::vector<std::string>{"P-7/p0"});
+  EXPECT_EQ(h.find_run("P-7/p0")->samples_dropped_bytes, 24000);
+  EXPECT_EQ(tables_named(path, part), 0);
+  for (const char* id : {"P-7/ref", "P-7/alarm", "P-9/forever"}) expect_samples_intact(h, runs[id]);
+}
+
+TEST_P(RetentionTest, OnPostgreSQLASchema9DatabaseGetsTheKeptPartition) {
+  if (!postgres()) GTEST_SKIP() << "the kept partition is PostgreSQL's";
+  const auto& path = location();
+  StoredRun run;
+  {
+    auto h = Historian::open(path);
+    run = store_run(h, "P-7/a", "P-7", 500, 1);
+  }
+  raw_run(path, "DROP TABLE sample_chunks_kept; ALTER TABLE runs DROP COLUMN samples_kept_at; UPDATE ambdiag_schema SET version = 9");
+  auto h = Historian::open(path);
+  EXPECT_EQ(raw_int(path, "SELECT version FROM ambdiag_schema"), Historian::schema_version());
+  EXPECT_EQ(tables_named(path, "sample_chunks_kept"), 1);
+  EXPECT_EQ(raw_int(path, "SELECT count(*) FROM runs WHERE samples_kept_at IS NULL"), 1);
+  expect_samples_intact(h, run);
 }
 
 }  // namespace

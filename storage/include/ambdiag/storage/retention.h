@@ -112,6 +112,9 @@ struct SweepReport {
   std::int64_t monitoring_rows = 0;
   std::int64_t pumps = 0;         // pumps looked at
   std::int64_t partitions = 0;    // PostgreSQL: day partitions of sample_chunks dropped whole
+  // PostgreSQL: the kept runs whose chunks were moved out of a day
+  // partition (to sample_chunks_kept) so that it could go whole; their bytes.
+  std::int64_t moved_runs = 0, moved_bytes = 0;
   std::int64_t transactions = 0;  // write transactions that dropped something
   double transactions_s = 0;      // their time, from BEGIN IMMEDIATE granted to COMMIT
   double longest_transaction_s = 0;  // the longest a writer (ingest) could have waited for the sweep
@@ -119,7 +122,8 @@ struct SweepReport {
   std::vector<std::string> errors;  // pumps whose stored policy did not read (the defaults were used)
 };
 // {"dry_run", "skipped"?, "stopped", "pumps", "samples": {"runs", "bytes"},
-//  "frf": {"runs", "bytes"}, "monitoring_rows", "partitions", "transactions",
+//  "frf": {"runs", "bytes"}, "monitoring_rows", "partitions",
+//  "moved": {"runs", "bytes"}, "transactions",
 //  "transactions_s", "longest_transaction_s", "seconds", "errors",
 //  "runs"?: [{"run_id", "pump_id", "what", "bytes", "reason"}]}
 nlohmann::json to_json(const SweepReport& r, bool with_runs);

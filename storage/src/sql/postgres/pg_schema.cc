@@ -1,7 +1,7 @@
 // The historian's schema in PostgreSQL. SQLite's migrations (schema.cc)
 // are the history of files since version 1; a PostgreSQL database is
 // created directly at the version it starts at (6, then the later
-// migrations, 7, 8 and 9) and from then on
+// migrations, 7 to 10) and from then on
 // migrated like a file: a change to the schema is a new entry here AND in
 // schema.cc, with the same number (docs/storage.md, "Adding a migration").
 //
@@ -375,6 +375,24 @@ CREATE TABLE retention_lease (
   holder      text COLLATE "C" NOT NULL,
   expires_at  text COLLATE "C" NOT NULL
 );
+)sql"},
+    // v10: a day partition of sample_chunks goes whole even when a few of
+    // its runs are kept (historian_retention.cc, docs/storage.md
+    // "PostgreSQL: day partitions"): the sweep first moves the kept runs'
+    // chunks to sample_chunks_kept, setting their run_created_at to
+    // 1800-01-01 (AMBDIAG_KEPT_CHUNKS_AT, historian_impl.h), a range before
+    // any reception time, so no day's drop ever takes it.
+    // runs.samples_kept_at says when a run's chunks moved (NULL: they are in
+    // its day's partition), so that put_chunks inserts a re-sent chunk of it
+    // with the same key and finds the one held (a duplicate), not a new row
+    // in another partition. Creating the partition scans
+    // sample_chunks_default once (PostgreSQL checks it holds no row of the
+    // range; none can, as every run_created_at is a server clock).
+    {10, R"sql(
+CREATE TABLE sample_chunks_kept PARTITION OF sample_chunks
+  FOR VALUES FROM (MINVALUE) TO ('1900-01-01 00:00:00+00');
+ALTER TABLE sample_chunks_kept ALTER COLUMN data SET STORAGE EXTERNAL;
+ALTER TABLE runs ADD COLUMN samples_kept_at text COLLATE "C";
 )sql"},
 };
 
