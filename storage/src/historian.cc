@@ -8,6 +8,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string_view>
+#include <thread>
 #include <unordered_map>
 
 #include <nlohmann/json.hpp>
@@ -123,11 +124,22 @@ Historian Historian::open(const std::string& location, Mode mode) {
       throw std::logic_error("schema version " + std::to_string(detail::latest_schema_version()) +
                              " in SQLite but " + std::to_string(detail::pg_latest_schema_version()) +
                              " in PostgreSQL: a migration must be added to both (docs/storage.md)");
-    auto db = detail::PgDb::open(location, ro);
-    detail::pg_migrate(*db, ro);
-    auto impl = std::make_unique<Impl>(std::move(db), ro);
-    impl->ensure_chunk_partitions(std::chrono::system_clock::now());
-    return Historian(std::move(impl));
+    // Opening takes transactions (the schema, the day partitions): one
+    // whose connection is lost (PostgreSQL restarting) is opened again once
+    // the location was reached (by this open too), as PgDb::open's reconnect.
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    for (;;) {
+      try {
+        auto db = detail::PgDb::open(location, ro);
+        detail::pg_migrate(*db, ro);
+        auto impl = std::make_unique<Impl>(std::move(db), ro);
+        impl->ensure_chunk_partitions(std::chrono::system_clock::now());
+        return Historian(std::move(impl));
+      } catch (const StorageError&) {
+        if (!detail::PgDb::reached_before(location) || std::chrono::steady_clock::now() >= until) throw;
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      }
+    }
   }
   auto db = std::make_unique<detail::Db>(
       detail::Db::open(location, ro ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE));

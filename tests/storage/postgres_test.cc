@@ -8,6 +8,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
+#include <optional>
 #include <functional>
 #include <thread>
 #include <vector>
@@ -196,6 +198,35 @@ TEST_F(PostgresTest, AConnectionTheServerEndedIsOpenedAgainOutsideATransaction) 
   }
   EXPECT_EQ(h.count_runs(), 3);
   EXPECT_FALSE(h.find_run("P-7/d"));
+}
+
+// A server this process reached before that is restarting: the next open
+// waits for it (up to 10 s) instead of failing, so a thread that opens its
+// historian then (a worker, a lease keeper) does not end the server; a
+// location never reached still fails at once.
+TEST(PostgresRestart, AnOpenWaitsForAServerReachedBeforeAndANewLocationFailsAtOnce) {
+  if (ambdiag::testing::postgres_tests_disabled()) GTEST_SKIP() << "AMBDIAG_NO_POSTGRES=1";
+  const std::string dir = "/tmp/ambdiag-pg-reopen-" + std::to_string(getpid());
+  auto cluster = ambdiag::testing::PgCluster::start(dir);
+  const std::string loc = cluster.fresh_schema_uri("reopen");
+  Historian::open(loc).begin_run(run_header_from_json(run_json_text("P-7/a", 2)));
+  cluster.shut_down();
+  std::thread later([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(800));
+    cluster.start_again();
+  });
+  const auto t0 = std::chrono::steady_clock::now();
+  std::optional<Historian> h;
+  EXPECT_NO_THROW(h.emplace(Historian::open(loc)));
+  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  later.join();
+  EXPECT_GE(waited_s, 0.5);  // it did wait for the start
+  EXPECT_TRUE(h && h->find_run("P-7/a"));
+  const auto t1 = std::chrono::steady_clock::now();
+  EXPECT_THROW(Historian::open("postgresql:///postgres?host=" + dir + "-none&user=postgres"), InputError);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count(), 2.0);
+  h.reset();
+  ambdiag::testing::PgCluster::stop(dir);
 }
 
 }  // namespace

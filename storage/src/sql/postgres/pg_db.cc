@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <mutex>
+#include <set>
 #include <stdexcept>
 #include <thread>
 
@@ -49,7 +51,11 @@ std::string double_text(double v) {
 // Notices ("relation already exists, skipping") are not errors: not printed.
 void ignore_notice(void*, const char*) {}
 
-const char kEmpty[1] = {0};  // a non-null pointer for an empty value (nullptr is NULL)
+const char kEmpty[1] = {0};
+
+// How long a restart or failover may take before a reconnect gives up
+// (ensure_connected, open of a location reached before).
+constexpr auto kReconnectFor = std::chrono::seconds(10);  // a non-null pointer for an empty value (nullptr is NULL)
 
 // libpq's messages end with a newline.
 std::string trimmed(std::string msg) {
@@ -90,15 +96,44 @@ std::string numbered_placeholders(std::string_view sql) {
   return out;
 }
 
+namespace {
+
+// The locations this process has connected to.
+std::mutex reached_mu;
+std::set<std::string> reached;
+
+}  // namespace
+
+bool PgDb::reached_before(const std::string& uri) {
+  std::lock_guard l(reached_mu);
+  return reached.count(uri) != 0;
+}
+
 std::unique_ptr<PgDb> PgDb::open(const std::string& uri, bool read_only) {
-  PGconn* conn = PQconnectdb(uri.c_str());
-  std::unique_ptr<PgDb> db(new PgDb(conn, uri, read_only));  // owns conn even when it failed
-  if (!conn) throw StorageError(db->display_ + ": cannot connect: out of memory");
-  if (PQstatus(conn) != CONNECTION_OK) {
-    throw InputError(db->display_ + ": cannot connect to PostgreSQL: " + trimmed(PQerrorMessage(conn)));
+  // A location this process has reached before that refuses now is taken
+  // for a restart or a failover: tried again for up to kReconnectFor; so is
+  // any server that says it is starting or stopping (SQLSTATE 57P03) or
+  // closes the connection while it is being set up. Otherwise the first
+  // connection fails at once: then the location is what is wrong.
+  const bool known = reached_before(uri);
+  const auto deadline = std::chrono::steady_clock::now() + kReconnectFor;
+  for (;;) {
+    PGconn* conn = PQconnectdb(uri.c_str());
+    std::unique_ptr<PgDb> db(new PgDb(conn, uri, read_only));  // owns conn even when it failed
+    if (!conn) throw StorageError(db->display_ + ": cannot connect: out of memory");
+    if (PQstatus(conn) == CONNECTION_OK) {
+      db->configure();
+      std::lock_guard l(reached_mu);
+      reached.insert(uri);
+      return db;
+    }
+    const std::string msg = PQerrorMessage(conn);
+    const bool restarting = msg.find("the database system is") != std::string::npos ||
+                            msg.find("server closed the connection unexpectedly") != std::string::npos;
+    if (!(known || restarting) || std::chrono::steady_clock::now() >= deadline)
+      throw InputError(db->display_ + ": cannot connect to PostgreSQL: " + trimmed(PQerrorMessage(conn)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
-  db->configure();
-  return db;
 }
 
 PgDb::PgDb(PGconn* conn, std::string uri, bool read_only)
@@ -124,8 +159,6 @@ void PgDb::configure() {
 // for up to kReconnectFor before the caller's statement fails, so a restart
 // is a pause for every thread of a process (its start-up too), not an error
 // each must handle.
-constexpr auto kReconnectFor = std::chrono::seconds(10);
-
 void PgDb::ensure_connected() {
   if (PQstatus(conn_) == CONNECTION_OK || in_tx_ || reconnecting_) return;  // a lost transaction fails; its rollback ends it
   reconnecting_ = true;  // configure()'s own statements must not reconnect again

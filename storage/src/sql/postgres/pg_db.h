@@ -36,7 +36,11 @@ class PgDb final : public Connection {
   // Connects (client_encoding UTF8). InputError naming the location (its
   // password masked) when the server cannot be reached or refuses the
   // login: the location is what is wrong.
+  // A location this process connected to before is tried again for up to
+  // 10 s (a restart or failover), a new one fails at once (a wrong URI).
   static std::unique_ptr<PgDb> open(const std::string& uri, bool read_only);
+  // This process has connected to `uri`.
+  static bool reached_before(const std::string& uri);
   ~PgDb() override;
 
   PGconn* get() const { return conn_; }
