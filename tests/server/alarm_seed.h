@@ -1,0 +1,34 @@
+// An active, unacknowledged alarm of a pump, stored as the server's alarm
+// evaluator stores one (with its raise in the journal): for the tests of
+// the alarm routes, which need an alarm without analysing a faulty run.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "ambdiag/storage/historian.h"
+
+namespace ambdiag::server {
+
+inline std::int64_t seed_alarm(storage::Historian& h, const std::string& pump_id, const std::string& rule,
+                               const std::string& run_id) {
+  storage::AlarmChanges c;
+  c.pump_id = pump_id;
+  storage::AlarmRecord a;
+  a.pump_id = pump_id;
+  a.rule = rule;
+  a.severity = "high";
+  a.state = "unack_active";
+  a.active = true;
+  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
+  a.run_id = run_id;
+  a.message = "balance_piston_wear: clearance_factor 1.7";
+  a.fault = "balance_piston_wear";
+  c.alarms.push_back(a);
+  c.events.emplace_back(
+      0, storage::AlarmEvent{0, 0, "", "", "raise", "2026-11-26T10:00:00.000Z", "normal", "unack_active", "server", "", a.run_id});
+  h.apply_alarm_changes(c);
+  return c.alarms[0].alarm_id;
+}
+
+}  // namespace ambdiag::server
