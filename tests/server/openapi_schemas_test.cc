@@ -1,7 +1,8 @@
 // The OpenAPI document holds the server to what it answers: on a real
 // server over a real historian file with a pump that has a model, a run
 // analysed by the real job runner, its jobs, series and trend points, a
-// monitoring snapshot and an alarm with a history, every route whose
+// monitoring snapshot, an alarm with a history, the pump's own alarm rules
+// and retention policy, every route whose
 // answer the document describes is called and its real answer validated
 // against the schema taken from the served openapi.json (the tests' own
 // validator, json_schema_check.h). A route given a schema but not
@@ -18,6 +19,7 @@
 #include "ambdiag/core/io_util.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/server/rest_server.h"
+#include "ambdiag/server/retention_service.h"
 #include "ambdiag/storage/historian.h"
 #include "ambdiag/storage/recording_io.h"
 #include "json_schema_check.h"
@@ -47,10 +49,16 @@ class OpenApiSchemas : public ::testing::Test {
     a.idle_priority = false;  // others' builds on the machine must not stall the analysis
     analysis_ = std::make_unique<AnalysisService>(a);
     analysis_->start();
+    RetentionOptions ro;
+    ro.db_path = db_;
+    ro.interval = std::chrono::milliseconds(0);  // policies kept, never swept here
+    ro.verbose = false;
+    retention_ = std::make_unique<RetentionService>(ro);
     RestOptions r;
     r.db_path = db_;
     r.host = "127.0.0.1";
     r.analysis = analysis_.get();
+    r.retention = retention_.get();
     r.proposed_reference_runs = 1;  // the one run is proposed: GET .../reference answers
     server_ = std::make_unique<RestServer>(r);
     port_ = server_->start();
@@ -107,6 +115,7 @@ class OpenApiSchemas : public ::testing::Test {
   std::string db_, admin_;
   std::optional<Historian> writer_;
   std::unique_ptr<AnalysisService> analysis_;
+  std::unique_ptr<RetentionService> retention_;
   std::unique_ptr<RestServer> server_;
   int port_ = 0;
   json document_;
@@ -115,7 +124,8 @@ class OpenApiSchemas : public ::testing::Test {
 
 TEST_F(OpenApiSchemas, EveryDescribedRouteAnswersAsItsSchemaSays) {
   // The state: a model (its PUT checked too), the run analysed, an alarm
-  // acknowledged, shelved and unshelved (each answer checked), a monitoring snapshot.
+  // acknowledged, shelved and unshelved, the pump's alarm rules and
+  // retention policy (each answer checked), a monitoring snapshot.
   const std::string plant = read_file_bytes(ambdiag::testing::data_file("reference_pump/plant.json").string());
   checked("put", "/api/v1/pumps/{pump_id}/model", "/api/v1/pumps/P-101/model", plant);
   const json analysis = wait_analysis(120s);
@@ -125,6 +135,9 @@ TEST_F(OpenApiSchemas, EveryDescribedRouteAnswersAsItsSchemaSays) {
   checked("post", alarm + "/ack", "/api/v1/alarms/" + alarm_id + "/ack", R"({"comment": "known"})");
   checked("post", alarm + "/shelve", "/api/v1/alarms/" + alarm_id + "/shelve", R"({"minutes": 30, "comment": "sensor work"})");
   checked("post", alarm + "/unshelve", "/api/v1/alarms/" + alarm_id + "/unshelve", "{}");
+  checked("put", "/api/v1/pumps/{pump_id}/alarm-rules", "/api/v1/pumps/P-101/alarm-rules",
+          R"({"rules": [{"id": "detection", "on_delay": {"k": 3, "n": 5}}]})");
+  checked("put", "/api/v1/pumps/{pump_id}/retention", "/api/v1/pumps/P-101/retention", R"({"samples_days": 90})");
   storage::MonitoringSnapshot snap;
   snap.pump_id = "P-101";
   snap.time_ns = storage::ns_from_utc("2026-11-21T10:05:00Z", "time");
@@ -155,7 +168,9 @@ TEST_F(OpenApiSchemas, EveryDescribedRouteAnswersAsItsSchemaSays) {
       {"/api/v1/alarms", "/alarms"},
       {"/api/v1/alarms/{alarm_id}/history", "/events"},
       {"/api/v1/alarm-events", "/events"},
-      {"/api/v1/pumps/{pump_id}/trends", "/series/0/points"}};
+      {"/api/v1/pumps/{pump_id}/trends", "/series/0/points"},
+      {"/api/v1/pumps/{pump_id}/alarm-rules", "/rules"},
+      {"/api/v1/pumps/{pump_id}/retention/history", "/versions"}};
 
   std::set<std::string> described;
   for (const auto& [path, ops] : document_["paths"].items()) {

@@ -202,10 +202,13 @@ void add_alarm_routes(RouteTable& t) {
   t.add({"GET", "/api/v1/alarm-kpis", Role::viewer, "alarm-system KPIs after EEMUA 191 / ISA-18.2 over a time range", plain(get_kpis),
          {{"from", "ISO 8601 UTC (default: to - 24 h)"}, {"to", "ISO 8601 UTC (default: now)"}}})
       .response_schema = ref("AlarmKpis");
-  t.add({"GET", "/api/v1/pumps/{pump_id}/alarm-rules", Role::viewer, "the pump's effective alarm rules", get_rules});
-  t.add({"PUT", "/api/v1/pumps/{pump_id}/alarm-rules", Role::engineer,
-         "a new version of the pump's alarm rules (body {\"rules\": [...], \"plant_state\"?}, each rule over the default of its id)",
-         put_rules});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/alarm-rules", Role::viewer, "the pump's effective alarm rules", get_rules})
+      .response_schema = ref("AlarmRules");
+  auto& rules = t.add({"PUT", "/api/v1/pumps/{pump_id}/alarm-rules", Role::engineer,
+                       "a new version of the pump's alarm rules (body {\"rules\": [...], \"plant_state\"?}, each rule over the default of its id)",
+                       put_rules});
+  rules.body_schema = object({}, {{"rules", array(object({{"id", string()}}))}, {"plant_state", object({})}});
+  rules.response_schema = ref("AlarmRules");
 }
 
 }  // namespace ambdiag::server::detail

@@ -1,5 +1,5 @@
 // The alarms' answers (rest.md "Alarms"; alarm_evaluator.h's alarm_json,
-// alarm_event_json; alarm_kpis.h).
+// alarm_event_json; alarm_kpis.h; a pump's rules: docs/service.md "Alarms").
 #include "routes/api_schemas.h"
 
 namespace ambdiag::server::detail {
@@ -7,10 +7,11 @@ namespace ambdiag::server::detail {
 using namespace schema;
 
 void add_alarm_schemas(RouteTable& t) {
+  const json severity = one_of({"low", "medium", "high", "critical"});
   t.add_schema("Alarm", object({{"alarm_id", integer()},
                                 {"pump_id", string()},
                                 {"rule", string()},
-                                {"severity", one_of({"low", "medium", "high", "critical"})},
+                                {"severity", severity},
                                 {"state", alarm_state()},
                                 {"active", boolean()},
                                 {"acknowledged", boolean()},
@@ -50,6 +51,29 @@ void add_alarm_schemas(RouteTable& t) {
                        {"stale", listed({{"alarm_id", integer()}, {"pump_id", string()}, {"rule", string()}, {"raised_at", time()},
                                          {"active_h", number()}})},
                        {"top", array(object({{"pump_id", string()}, {"rule", string()}, {"raises", integer()}, {"share", number()}}))}}));
+  // One rule as GET shows it (a PUT may give only the keys it changes);
+  // the optional keys belong to some kinds of rule only.
+  t.add_schema("AlarmRule", object({{"id", string()},
+                                    {"enabled", boolean()},
+                                    {"levels", array(object({{"severity", severity}, {"raise", number()}}))},
+                                    {"clear", number()},
+                                    {"on_delay", object({{"k", integer()}, {"n", integer()}})},
+                                    {"off_delay", integer()},
+                                    {"latch", nullable(severity)}},
+                                   {{"parameter", string()},
+                                    {"direction", one_of({"below", "above"})},
+                                    {"nominal", number()},
+                                    {"min_relative_shift", number()},
+                                    {"k_sd", number()},
+                                    {"clearance_m", nullable(number())},
+                                    {"limit_s", number()},
+                                    {"nrmse_limit", number()}}));
+  t.add_schema("AlarmRules", object({{"pump_id", string()},
+                                     {"plant_state", object({{"speed_band", number()}, {"stopped_below_rpm", number()}})},
+                                     {"rules", array(ref("AlarmRule"))},
+                                     {"version", integer()},
+                                     {"source", one_of({"pump", "defaults"})}},
+                                    {{"created_at", time()}, {"created_by", string()}}));
 }
 
 }  // namespace ambdiag::server::detail

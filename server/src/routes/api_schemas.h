@@ -14,7 +14,8 @@ namespace ambdiag::server::detail {
 void add_read_schemas(RouteTable& t);
 // Pump, Analysis, FittedMode, Job (analysis_schemas.cc).
 void add_analysis_schemas(RouteTable& t);
-// Alarm, AlarmTransition, AlarmJournalEvent, AlarmKpis (alarm_schemas.cc).
+// Alarm, AlarmTransition, AlarmJournalEvent, AlarmKpis, AlarmRule,
+// AlarmRules (alarm_schemas.cc).
 void add_alarm_schemas(RouteTable& t);
 // Trend, TrendPoint, TrendBucket, Prognosis (trend_schemas.cc).
 void add_trend_schemas(RouteTable& t);
