@@ -1,6 +1,7 @@
 // An active, unacknowledged alarm of a pump, stored as the server's alarm
 // evaluator stores one (with its raise in the journal): for the tests of
 // the alarm routes, which need an alarm without analysing a faulty run.
+// `latched`: it reached its rule's latch severity (an engineer resets it).
 #pragma once
 
 #include <cstdint>
@@ -11,7 +12,7 @@
 namespace ambdiag::server {
 
 inline std::int64_t seed_alarm(storage::Historian& h, const std::string& pump_id, const std::string& rule,
-                               const std::string& run_id) {
+                               const std::string& run_id, bool latched = false) {
   storage::AlarmChanges c;
   c.pump_id = pump_id;
   storage::AlarmRecord a;
@@ -20,6 +21,7 @@ inline std::int64_t seed_alarm(storage::Historian& h, const std::string& pump_id
   a.severity = "high";
   a.state = "unack_active";
   a.active = true;
+  a.latched = latched;
   a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
   a.run_id = run_id;
   a.message = "balance_piston_wear: clearance_factor 1.7";

@@ -32,10 +32,17 @@ void add_analysis_schemas(RouteTable& t) {
                                      {"peak_snr", number()},
                                      {"stable_orders", integer()}}));
   const json detection = object({{"detected", boolean()}, {"statistic", number()}, {"threshold", number()}, {"false_alarm_rate", number()}},
-                                {{"ratio", number()}, {"dof", integer()}, {"p_value", number()}, {"operating", object({})}});
-  // cli.md's diagnose: the faults ranked, each with its fitted parameters.
-  const json diagnosis = object({{"detected", boolean()}, {"faults", array(object({{"fault", string()}}))}},
-                                {{"statistic", number()}, {"threshold", number()}, {"symptoms", array(object({}))}});
+                                {{"ratio", number()}, {"dof", number()}, {"p_value", number()}, {"operating", object({})}});
+  // cli.md's diagnose: the faults ranked, each with its fitted parameters
+  // ("unknown" when no fault model explains the change).
+  const json fault = object({{"fault", string()}, {"score", number()}, {"parameters", map_of(any())}},
+                            {{"location", object({})}, {"chi2", number()}, {"bic", number()}, {"nrmse", number()}, {"reason", string()}});
+  const json diagnosis = object({{"detected", boolean()},
+                                 {"statistic", number()},
+                                 {"threshold", number()},
+                                 {"symptoms", array(object({{"kind", string()}}))},
+                                 {"faults", array(fault)}},
+                                {{"dof", number()}, {"p_value", number()}, {"fit", object({})}, {"not_assessed", array(object({{"fault", string()}}))}});
   t.add_schema("Analysis", object({{"run_id", string()},
                                    {"pump_id", string()},
                                    {"status", one_of({"waiting", "queued", "running", "done", "failed"})}},
