@@ -188,6 +188,15 @@ TEST_F(OpenApiSchemas, EveryDescribedRouteAnswersAsItsSchemaSays) {
                                                      {"{alarm_id}", alarm_id}};
   const std::map<std::string, std::string> queries = {{"/api/v1/pumps/{pump_id}/trends", "?series=" + name},
                                                       {"/api/v1/pumps/{pump_id}/prognosis", "?series=fit.nrmse&limit=1"}};
+  // The Grafana data source's POSTs only read: each with a body that finds something.
+  const auto grafana = [&](const std::string& what, const json& body) {
+    const json answer = checked("post", "/api/v1/grafana/" + what, "/api/v1/grafana/" + what, body.dump());
+    EXPECT_TRUE(what == "metric-payload-options" || !answer.empty()) << what << " found nothing";
+  };
+  for (const char* what : {"metrics", "search", "metric-payload-options", "variable"}) grafana(what, json::object());
+  grafana("query", {{"targets", {{{"target", "P-101:fit.nrmse"}, {"refId", "A"}}}}});
+  grafana("annotations", {{"annotation", {{"query", "P-101"}}}});
+
   // Lists whose items must be there, so that their schema was applied.
   const std::map<std::string, std::string> non_empty = {
       {"/api/v1/pumps", "/pumps"},
