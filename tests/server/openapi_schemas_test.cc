@@ -73,6 +73,13 @@ class OpenApiSchemas : public ::testing::Test {
     return rest_request(port_, method, path, admin_, body);
   }
 
+  // A key as a JSON pointer's token ('/' as ~1).
+  static std::string escaped(const std::string& key) {
+    std::string out;
+    for (const char ch : key) out += ch == '~' ? "~0" : ch == '/' ? "~1" : std::string(1, ch);
+    return out;
+  }
+
   // The success answer's schema of (method, path) in the served document;
   // null where it only says "an object" (a route not described yet).
   json response_schema(const std::string& method, const std::string& path) const {
@@ -87,10 +94,14 @@ class OpenApiSchemas : public ::testing::Test {
     return nullptr;
   }
 
-  // Calls the route, expects its success status, validates the answer
-  // against the route's schema (documented path `path`, real URL `url`)
-  // and returns it.
+  // Calls the route, expects its success status, validates the body sent
+  // and the answer against the route's schemas (documented path `path`,
+  // real URL `url`) and returns the answer.
   json checked(const std::string& method, const std::string& path, const std::string& url, const std::string& body = "") {
+    const json::json_pointer body_at("/paths/" + escaped(path) + "/" + method + "/requestBody/content/application~1json/schema");
+    if (!body.empty() && document_.contains(body_at))
+      for (const auto& v : ambdiag::testing::schema_violations(json::parse(body), document_.at(body_at), document_))
+        ADD_FAILURE() << method << " " << path << " body " << body << ": " << v;
     const auto r = request(method == "get" ? "GET" : method == "put" ? "PUT" : "POST", url, body);
     EXPECT_TRUE(r) << url;
     if (!r) return nullptr;

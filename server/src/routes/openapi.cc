@@ -156,9 +156,10 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
   }
   if (!params.empty()) op["parameters"] = params;
 
-  if (!r.body.empty())
-    op["requestBody"] = {{"required", true},
-                         {"description", r.body},
+  // A body whose schema requires no key may be left out (ack's {"comment"?}).
+  if (!r.body.empty() || !r.body_schema.is_null())
+    op["requestBody"] = {{"required", r.body_schema.is_null() || r.body_schema.contains("required")},
+                         {"description", r.body.empty() ? "a JSON object" : r.body},
                          {"content", {{r.body_type, {{"schema", content_schema(r.body_type, r.body_schema)}}}}}};
 
   json responses = {{std::to_string(r.status),
