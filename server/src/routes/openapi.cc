@@ -111,9 +111,9 @@ void check_refs(const json& j, const json& schemas) {
   if (j.is_object()) {
     if (const auto r = j.find("$ref"); r != j.end() && r->is_string()) {
       const std::string ref = *r;
-      const std::string prefix = "#/components/";
-      const bool schema_ref = ref.rfind(prefix + "schemas/", 0) == 0;
-      if (schema_ref && !schemas.contains(ref.substr(prefix.size() + 8))) throw std::logic_error("no schema for $ref " + ref);
+      const std::string prefix = "#/components/schemas/";  // not the shared responses' refs
+      if (ref.rfind(prefix, 0) == 0 && !schemas.contains(ref.substr(prefix.size())))
+        throw std::logic_error("no schema for $ref " + ref);
     }
   }
   if (j.is_structured())
