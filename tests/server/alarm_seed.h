@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 
+#include "../storage/historian_fixture.h"
 #include "ambdiag/storage/historian.h"
 
 namespace ambdiag::server {
@@ -15,20 +16,13 @@ inline std::int64_t seed_alarm(storage::Historian& h, const std::string& pump_id
                                const std::string& run_id, bool latched = false) {
   storage::AlarmChanges c;
   c.pump_id = pump_id;
-  storage::AlarmRecord a;
-  a.pump_id = pump_id;
-  a.rule = rule;
-  a.severity = "high";
-  a.state = "unack_active";
-  a.active = true;
-  a.latched = latched;
-  a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
+  storage::AlarmRecord a = ambdiag::testing::open_alarm(pump_id, rule);
   a.run_id = run_id;
   a.message = "balance_piston_wear: clearance_factor 1.7";
-  a.fault = "balance_piston_wear";
+  a.latched = latched;
   c.alarms.push_back(a);
   c.events.emplace_back(
-      0, storage::AlarmEvent{0, 0, "", "", "raise", "2026-11-26T10:00:00.000Z", "normal", "unack_active", "server", "", a.run_id});
+      0, storage::AlarmEvent{0, 0, "", "", "raise", a.raised_at, "normal", "unack_active", "server", "", a.run_id});
   h.apply_alarm_changes(c);
   return c.alarms[0].alarm_id;
 }
