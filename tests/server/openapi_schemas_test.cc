@@ -1,12 +1,12 @@
 // The OpenAPI document holds the server to what it answers: on a real
-// server over a real historian file with a pump that has a model, a run
-// analysed by the real job runner, its jobs, series and trend points, a
-// monitoring snapshot, an alarm with a history, the pump's own alarm rules
-// and retention policy, every route whose
-// answer the document describes is called and its real answer validated
-// against the schema taken from the served openapi.json (the tests' own
-// validator, json_schema_check.h). A route given a schema but not
-// exercised here fails the test, so the two cannot drift apart.
+// server over a real historian file, with the real job runner, a pump with
+// a model, runs analysed, a reference, a diagnosed run, jobs, series and
+// trend points, a monitoring snapshot, alarms with a history, the pump's
+// own alarm rules and retention policy; then every route whose answer the
+// document describes is called and its real answer (and the body sent)
+// validated against the schema taken from the served openapi.json (the
+// tests' own validator, json_schema_check.h). A route given a schema but
+// not exercised here fails the test, so the two cannot drift apart.
 #include <gtest/gtest.h>
 #include <httplib.h>
 
