@@ -9,6 +9,7 @@
 #include "ambdiag/server/rest_server.h"
 #include "ambdiag/storage/historian.h"
 #include "ambdiag/storage/recording_io.h"
+#include "alarm_seed.h"
 #include "rest_request.h"
 #include "test_support.h"
 
@@ -46,23 +47,7 @@ class RestAlarms : public ::testing::Test {
 
   // An active alarm of the pump, raised by the server.
   std::int64_t seed_alarm(const std::string& rule) {
-    storage::AlarmChanges c;
-    c.pump_id = "P-101";
-    storage::AlarmRecord a;
-    a.pump_id = "P-101";
-    a.rule = rule;
-    a.severity = "high";
-    a.state = "unack_active";
-    a.active = true;
-    a.raised_at = a.updated_at = "2026-11-26T10:00:00.000Z";
-    a.run_id = "P-101/2026-11-21T10:00:00Z";
-    a.message = "balance_piston_wear: clearance_factor 1.7";
-    a.fault = "balance_piston_wear";
-    c.alarms.push_back(a);
-    c.events.emplace_back(0, storage::AlarmEvent{0, 0, "", "", "raise", "2026-11-26T10:00:00.000Z", "normal", "unack_active",
-                                                 "server", "", a.run_id});
-    writer_->apply_alarm_changes(c);
-    return c.alarms[0].alarm_id;
+    return server::seed_alarm(*writer_, "P-101", rule, "P-101/2026-11-21T10:00:00Z");
   }
 
   httplib::Result request(const std::string& method, const std::string& path, const std::string& token,

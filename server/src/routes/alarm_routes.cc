@@ -11,6 +11,7 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/storage/monitoring.h"
+#include "routes/api_schemas.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -166,28 +167,48 @@ json alarm_defaults_of(const RouteContext& c) {
 
 void add_alarm_routes(RouteTable& t) {
   using storage::Role;
+  using namespace schema;
+  add_alarm_schemas(t);
   const auto plain = [](void (*f)(RouteContext&)) { return [f](RouteContext& c, const PathParams&) { f(c); }; };
+  const json comment = object({}, {{"comment", string()}});
   t.add({"GET", "/api/v1/alarms", Role::viewer, "alarms, newest first", plain(get_alarms),
          {{"pump_id", "only this pump's"},
           {"state", "normal, unack_active, ack_active, unack_rtn, shelved, suppressed or out_of_service"},
           {"active", "true or false"},
-          {"limit", "at most this many (1..10000, default 1000)"}}});
-  t.add({"GET", "/api/v1/alarms/{alarm_id}", Role::viewer, "one alarm", get_alarm});
+          {"limit", "at most this many (1..10000, default 1000)"}}})
+      .response_schema = object({{"alarms", array(ref("Alarm"))}});
+  t.add({"GET", "/api/v1/alarms/{alarm_id}", Role::viewer, "one alarm", get_alarm}).response_schema = ref("Alarm");
   t.add({"GET", "/api/v1/alarms/{alarm_id}/history", Role::viewer, "every transition of an alarm, oldest first, with who made it",
-         get_history});
-  t.add({"POST", "/api/v1/alarms/{alarm_id}/ack", Role::operator_, "acknowledge an alarm (body {\"comment\"?}); 409 where its state allows none",
-         post_ack});
-  t.add({"POST", "/api/v1/alarms/{alarm_id}/shelve", Role::operator_, "shelve an alarm (body {\"minutes\", \"comment\"})", post_shelve});
-  t.add({"POST", "/api/v1/alarms/{alarm_id}/unshelve", Role::operator_, "unshelve an alarm (body {\"comment\"?})", post_unshelve});
-  t.add({"POST", "/api/v1/alarms/{alarm_id}/reset", Role::engineer, "reset a latched alarm (body {\"comment\"}, required)", post_reset});
+         get_history})
+      .response_schema = object({{"events", array(ref("AlarmTransition"))}}, {{"alarm_id", integer()}});
+  // Each answers the alarm after the transition.
+  const auto transition = [&](Route r, json body) {
+    Route& added = t.add(std::move(r));
+    added.body_schema = std::move(body);
+    added.response_schema = ref("Alarm");
+  };
+  transition({"POST", "/api/v1/alarms/{alarm_id}/ack", Role::operator_, "acknowledge an alarm (body {\"comment\"?}); 409 where its state allows none",
+              post_ack},
+             comment);
+  transition({"POST", "/api/v1/alarms/{alarm_id}/shelve", Role::operator_, "shelve an alarm (body {\"minutes\", \"comment\"})", post_shelve},
+             object({{"minutes", integer()}, {"comment", string()}}));
+  transition({"POST", "/api/v1/alarms/{alarm_id}/unshelve", Role::operator_, "unshelve an alarm (body {\"comment\"?})", post_unshelve},
+             comment);
+  transition({"POST", "/api/v1/alarms/{alarm_id}/reset", Role::engineer, "reset a latched alarm (body {\"comment\"}, required)", post_reset},
+             object({{"comment", string()}}));
   t.add({"GET", "/api/v1/alarm-events", Role::viewer, "the fleet's alarm journal after a sequence number: the cursor plant systems poll",
-         plain(get_events), {{"after_seq", "entries after this seq (default 0)"}, {"limit", "at most this many (1..10000, default 1000)"}}});
+         plain(get_events), {{"after_seq", "entries after this seq (default 0)"}, {"limit", "at most this many (1..10000, default 1000)"}}})
+      .response_schema = object({{"events", array(ref("AlarmJournalEvent"))}, {"next_seq", integer()}});
   t.add({"GET", "/api/v1/alarm-kpis", Role::viewer, "alarm-system KPIs after EEMUA 191 / ISA-18.2 over a time range", plain(get_kpis),
-         {{"from", "ISO 8601 UTC (default: to - 24 h)"}, {"to", "ISO 8601 UTC (default: now)"}}});
-  t.add({"GET", "/api/v1/pumps/{pump_id}/alarm-rules", Role::viewer, "the pump's effective alarm rules", get_rules});
-  t.add({"PUT", "/api/v1/pumps/{pump_id}/alarm-rules", Role::engineer,
-         "a new version of the pump's alarm rules (body {\"rules\": [...], \"plant_state\"?}, each rule over the default of its id)",
-         put_rules});
+         {{"from", "ISO 8601 UTC (default: to - 24 h)"}, {"to", "ISO 8601 UTC (default: now)"}}})
+      .response_schema = ref("AlarmKpis");
+  t.add({"GET", "/api/v1/pumps/{pump_id}/alarm-rules", Role::viewer, "the pump's effective alarm rules", get_rules})
+      .response_schema = ref("AlarmRules");
+  auto& rules = t.add({"PUT", "/api/v1/pumps/{pump_id}/alarm-rules", Role::engineer,
+                       "a new version of the pump's alarm rules (body {\"rules\": [...], \"plant_state\"?}, each rule over the default of its id)",
+                       put_rules});
+  rules.body_schema = object({}, {{"rules", array(object({{"id", string()}}))}, {"plant_state", object({})}});
+  rules.response_schema = ref("AlarmRules");
 }
 
 }  // namespace ambdiag::server::detail

@@ -6,6 +6,7 @@
 #include "ambdiag/server/analysis_service.h"
 #include "analysis/views.h"
 #include "rest_json.h"
+#include "routes/api_schemas.h"
 
 namespace ambdiag::server::detail {
 
@@ -167,6 +168,8 @@ void post_cancel(RouteContext& c, const std::string& job_id) {
 
 void add_analysis_routes(RouteTable& t) {
   using storage::Role;
+  using namespace schema;
+  add_analysis_schemas(t);
   const auto pump = [](void (*f)(RouteContext&, const std::string&)) {
     return [f](RouteContext& c, const PathParams& p) { f(c, p.at("pump_id")); };
   };
@@ -176,33 +179,47 @@ void add_analysis_routes(RouteTable& t) {
   const auto job = [](void (*f)(RouteContext&, const std::string&)) {
     return [f](RouteContext& c, const PathParams& p) { f(c, p.at("job_id")); };
   };
-  t.add({"GET", "/api/v1/pumps/{pump_id}", Role::viewer, "a pump: model and reference versions, health, active alarms, last run and analysis", pump(get_pump)});
+  t.add({"GET", "/api/v1/pumps/{pump_id}", Role::viewer, "a pump: model and reference versions, health, active alarms, last run and analysis", pump(get_pump)})
+      .response_schema = ref("Pump");
   t.add({"GET", "/api/v1/pumps/{pump_id}/model", Role::viewer, "the plant JSON of a model version (default: the current one)", pump(get_model),
          {{"version", "model version (default: the current one)"}}});
-  t.add({"PUT", "/api/v1/pumps/{pump_id}/model", Role::engineer, "a new model version (body: plant JSON); registers the pump", pump(put_model)})
-      .body = "the plant JSON (plant-model.md); a bad plant is 400 naming the field";
-  t.add({"GET", "/api/v1/pumps/{pump_id}/models", Role::viewer, "every model version of a pump", pump(get_models)});
-  t.add({"GET", "/api/v1/pumps/{pump_id}/reference", Role::viewer, "the pump's reference (or the proposed one)", pump(get_reference)});
+  auto& model = t.add({"PUT", "/api/v1/pumps/{pump_id}/model", Role::engineer, "a new model version (body: plant JSON); registers the pump", pump(put_model)});
+  model.body = "the plant JSON (plant-model.md); a bad plant is 400 naming the field";
+  model.response_schema = object({{"pump_id", string()}, {"model_version", integer()}});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/models", Role::viewer, "every model version of a pump", pump(get_models)})
+      .response_schema = object({{"pump_id", string()},
+                                 {"models", array(object({{"model_version", integer()}, {"created_at", time()}},
+                                                         {{"created_by", string()}, {"comment", string()}}))}});
+  t.add({"GET", "/api/v1/pumps/{pump_id}/reference", Role::viewer, "the pump's reference (or the proposed one)", pump(get_reference)})
+      .response_schema = ref("Reference");
   auto& reference = t.add({"PUT", "/api/v1/pumps/{pump_id}/reference", Role::engineer,
                            "a new reference version from runs (body {\"runs\": [run_id, ...]})", pump(put_reference)});
   reference.body = "{\"runs\": [run_id, ...]}: at least 2 complete identification runs of the pump";
   reference.status = 202;
-  t.add({"GET", "/api/v1/runs/{run_id*}/analysis", Role::viewer, "the run's analysis: status, modes, detection, diagnosis", run(get_analysis)});
+  reference.body_schema = object({{"runs", array(string())}});
+  reference.response_schema = object({{"job_id", integer()}, {"reference_version", integer()}}, {{"pump_id", string()}});
+  t.add({"GET", "/api/v1/runs/{run_id*}/analysis", Role::viewer, "the run's analysis: status, modes, detection, diagnosis", run(get_analysis)})
+      .response_schema = ref("Analysis");
   for (const std::string file : {"frf.csv", "bode.svg", "stabilization.svg", "diagnosis.svg", "fit_model.json"})
     t.add({"GET", "/api/v1/runs/{run_id*}/" + file, Role::viewer, "the analysis' " + file,
            [file](RouteContext& c, const PathParams& p) { get_run_file(c, p.at("run_id"), file); }, {},
            file == "frf.csv" ? "text/csv" : file == "fit_model.json" ? "application/json" : "image/svg+xml"})
         .errors = {410};
-  t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)})
-      .status = 202;
+  auto& explain = t.add({"POST", "/api/v1/runs/{run_id*}/explain", Role::engineer, "an explain job for the run (202 with its job_id)", run(post_explain)});
+  explain.status = 202;
+  explain.response_schema = object({{"job_id", integer()}}, {{"run_id", string()}});
   t.add({"GET", "/api/v1/jobs", Role::viewer, "jobs, newest first", [](RouteContext& c, const PathParams&) { get_jobs(c); },
          {{"pump_id", "only this pump's"}, {"run_id", "only this run's"}, {"kind", "analysis, reference or explain"},
-          {"status", "queued, running, done, failed or cancelled"}, {"limit", "at most this many (1..10000)"}}});
-  t.add({"GET", "/api/v1/jobs/{job_id}", Role::viewer, "a job with its result and files", job(get_job)});
+          {"status", "queued, running, done, failed or cancelled"}, {"limit", "at most this many (1..10000)"}}})
+      .response_schema = object({{"jobs", array(ref("Job"))}});
+  t.add({"GET", "/api/v1/jobs/{job_id}", Role::viewer, "a job with its result and files", job(get_job)})
+      .response_schema = ref("Job");
   t.add({"GET", "/api/v1/jobs/{job_id}/files/{name}", Role::viewer, "a file a job made",
          [](RouteContext& c, const PathParams& p) { get_job_file(c, p.at("job_id"), p.at("name")); }, {}, "application/octet-stream"});
-  t.add({"POST", "/api/v1/jobs/{job_id}/adopt", Role::engineer, "adopt an explain job's improved model as the pump's new model version", job(post_adopt)});
-  t.add({"POST", "/api/v1/jobs/{job_id}/cancel", Role::engineer, "cancel a queued or running job", job(post_cancel)});
+  t.add({"POST", "/api/v1/jobs/{job_id}/adopt", Role::engineer, "adopt an explain job's improved model as the pump's new model version", job(post_adopt)})
+      .response_schema = object({{"pump_id", string()}, {"model_version", integer()}, {"adopted_from_job", integer()}});
+  t.add({"POST", "/api/v1/jobs/{job_id}/cancel", Role::engineer, "cancel a queued or running job", job(post_cancel)})
+      .response_schema = ref("Job");
 }
 
 }  // namespace ambdiag::server::detail

@@ -10,6 +10,7 @@
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/storage/historian.h"
 #include "alarms/alarm_state.h"
+#include "routes/json_schema.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -190,35 +191,55 @@ void variable(RouteContext& c) {
 
 void add_grafana_routes(RouteTable& t) {
   using storage::Role;
-  const auto read_post = [&t](std::string pattern, std::string summary, RouteHandler h) {
+  using namespace schema;
+  // The schemas are the Grafana plugins' protocol (simpod-json-datasource, SimpleJSON).
+  const auto read_post = [&t](std::string pattern, std::string summary, RouteHandler h, json body, json answer) {
     Route r{"POST", std::move(pattern), Role::viewer, std::move(summary), std::move(h)};
     r.read_only = true;
+    r.body_schema = std::move(body);
+    r.response_schema = std::move(answer);
     t.add(std::move(r));
   };
   Route root{"GET", "/api/v1/grafana", Role::viewer, "Grafana data source: connection test (200; also with a trailing '/')",
              [](RouteContext& c, const PathParams&) { send_json(c.res, 200, {{"status", "ok"}, {"service", "ambdiag"}}); }};
   root.trailing_slash = true;
+  root.response_schema = object({{"status", one_of({"ok"})}, {"service", string()}});
   t.add(std::move(root));
+  const json range = object({}, {{"from", time()}, {"to", time()}});
   read_post("/api/v1/grafana/metrics", "Grafana JSON data source: every PUMP:SERIES as {label, value}",
             [](RouteContext& c, const PathParams&) {
               auto h = c.pool.acquire();
               auto snap = h->snapshot();
               send_json(c.res, 200, metric_list(*h, true));
-            });
+            },
+            object({}), array(object({{"label", string()}, {"value", string()}})));
   read_post("/api/v1/grafana/search", "Grafana SimpleJSON: every PUMP:SERIES as a string",
             [](RouteContext& c, const PathParams&) {
               auto h = c.pool.acquire();
               auto snap = h->snapshot();
               send_json(c.res, 200, metric_list(*h, false));
-            });
+            },
+            object({}), array(string()));
   read_post("/api/v1/grafana/metric-payload-options", "Grafana JSON data source: payload options (none)",
-            [](RouteContext& c, const PathParams&) { send_json(c.res, 200, json::array()); });
+            [](RouteContext& c, const PathParams&) { send_json(c.res, 200, json::array()); }, object({}), array(any()));
   read_post("/api/v1/grafana/query", "Grafana: targets PUMP:SERIES over range as [value, epoch ms] datapoints, maxDataPoints by min/max buckets",
-            [](RouteContext& c, const PathParams&) { query(c); });
+            [](RouteContext& c, const PathParams&) { query(c); },
+            object({{"targets", array(object({}, {{"target", string()}, {"refId", any()}, {"hide", boolean()}, {"payload", object({})}}))}},
+                   {{"range", range}, {"maxDataPoints", integer()}}),
+            array(object({{"target", string()}, {"datapoints", array(array(number()))}}, {{"refId", any()}})));
   read_post("/api/v1/grafana/variable", "Grafana JSON data source: a variable's values (the pumps, or a pump's series)",
-            [](RouteContext& c, const PathParams&) { variable(c); });
+            [](RouteContext& c, const PathParams&) { variable(c); },
+            object({}, {{"payload", object({}, {{"target", string()}})}}),
+            array(object({{"__text", string()}, {"__value", string()}})));
   read_post("/api/v1/grafana/annotations", "Grafana: the alarm journal (every transition) as annotations",
-            [](RouteContext& c, const PathParams&) { annotations(c); });
+            [](RouteContext& c, const PathParams&) { annotations(c); },
+            object({}, {{"range", range}, {"annotation", object({}, {{"query", string()}})}}),
+            array(object({{"annotation", object({})},
+                          {"time", integer()},
+                          {"timeEnd", integer()},
+                          {"title", string()},
+                          {"text", string()},
+                          {"tags", array(string())}})));
 }
 
 }  // namespace ambdiag::server::detail

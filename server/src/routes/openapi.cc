@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <set>
+#include <stdexcept>
 
 namespace ambdiag::server::detail {
 
@@ -38,7 +39,7 @@ json error_ref(int status) {
   return json::object();
 }
 
-json components() {
+json components(const RouteTable& table) {
   json responses = json::object();
   const json error_content = {{"application/json", {{"schema", {{"$ref", "#/components/schemas/Error"}}}}}};
   for (const auto& e : kErrors) {
@@ -51,14 +52,18 @@ json components() {
       r["headers"] = {{"WWW-Authenticate", {{"description", "Bearer"}, {"schema", {{"type", "string"}}}}}};
     responses[e.name] = r;
   }
-  return {{"schemas",
-           {{"Error",
+  json schemas = {{"Error",
              {{"type", "object"},
               {"required", {"error"}},
               {"properties",
                {{"error",
                  {{"type", "string"},
-                  {"description", "what is wrong, naming the field, parameter or state"}}}}}}}}},
+                  {"description", "what is wrong, naming the field, parameter or state"}}}}}}}};
+  for (const auto& [name, s] : table.schemas()) {
+    if (schemas.contains(name)) throw std::logic_error("schema name taken: " + name);
+    schemas[name] = s;
+  }
+  return {{"schemas", schemas},
           {"responses", responses},
           {"securitySchemes",
            {{"bearer",
@@ -93,9 +98,26 @@ std::string operation_id(const std::string& method, const std::string& pattern,
   return unique;
 }
 
-json content_schema(const std::string& type) {
+// The route's schema where it has one, else what the content type says.
+json content_schema(const std::string& type, const json& schema) {
+  if (!schema.is_null()) return schema;
   if (type == "application/json") return {{"type", "object"}};
   return {{"type", "string"}};
+}
+
+// Every $ref names a component: a typo in a schema is a programming error
+// that every test requesting the document catches.
+void check_refs(const json& j, const json& schemas) {
+  if (j.is_object()) {
+    if (const auto r = j.find("$ref"); r != j.end() && r->is_string()) {
+      const std::string ref = *r;
+      const std::string prefix = "#/components/schemas/";  // not the shared responses' refs
+      if (ref.rfind(prefix, 0) == 0 && !schemas.contains(ref.substr(prefix.size())))
+        throw std::logic_error("no schema for $ref " + ref);
+    }
+  }
+  if (j.is_structured())
+    for (const auto& v : j) check_refs(v, schemas);
 }
 
 json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool anonymous_read,
@@ -134,14 +156,15 @@ json operation(const Route& r, const std::vector<PatternSegment>& pattern, bool 
   }
   if (!params.empty()) op["parameters"] = params;
 
-  if (!r.body.empty())
-    op["requestBody"] = {{"required", true},
-                         {"description", r.body},
-                         {"content", {{r.body_type, {{"schema", content_schema(r.body_type)}}}}}};
+  // A body whose schema requires no key may be left out (ack's {"comment"?}).
+  if (!r.body.empty() || !r.body_schema.is_null())
+    op["requestBody"] = {{"required", r.body_schema.is_null() || r.body_schema.contains("required")},
+                         {"description", r.body.empty() ? "a JSON object" : r.body},
+                         {"content", {{r.body_type, {{"schema", content_schema(r.body_type, r.body_schema)}}}}}};
 
   json responses = {{std::to_string(r.status),
                      {{"description", r.summary},
-                      {"content", {{r.response_type, {{"schema", content_schema(r.response_type)}}}}}}}};
+                      {"content", {{r.response_type, {{"schema", content_schema(r.response_type, r.response_schema)}}}}}}}};
   std::vector<int> errors = {400, 404, 500};
   if (r.role) errors.insert(errors.end(), {401, 403, 429});
   if (r.method != "GET")
@@ -181,6 +204,9 @@ json openapi_document(const RouteTable& table, bool anonymous_read) {
     for (const char c : r.method) method += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     paths[openapi_path(table.pattern(i))][method] = operation(r, table.pattern(i), anonymous_read, ids);
   }
+  json comps = components(table);
+  check_refs(paths, comps["schemas"]);
+  check_refs(comps["schemas"], comps["schemas"]);
   return {{"openapi", "3.1.0"},
           {"info",
            {{"title", "ambdiag"},
@@ -197,7 +223,7 @@ json openapi_document(const RouteTable& table, bool anonymous_read) {
              "engineer < admin. Times are ISO 8601 UTC."}}},
           {"security", json::array({{{"bearer", json::array()}}})},
           {"paths", paths},
-          {"components", components()}};
+          {"components", comps}};
 }
 
 }  // namespace ambdiag::server::detail

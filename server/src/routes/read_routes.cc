@@ -5,6 +5,7 @@
 #include "ambdiag/storage/historian.h"
 #include "analysis/views.h"
 #include "rest_json.h"
+#include "routes/api_schemas.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -100,6 +101,8 @@ void samples(RouteContext& c, const std::string& run_id) {
 
 void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point started) {
   using storage::Role;
+  using namespace schema;
+  add_read_schemas(t);
   t.add({"GET", "/api/v1/health", std::nullopt, "liveness, schema version, run count, uptime (no token needed)",
          [started](RouteContext& c, const PathParams&) {
            auto h = c.pool.acquire();
@@ -111,15 +114,21 @@ void add_read_routes(RouteTable& t, std::chrono::steady_clock::time_point starte
                                {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}};
            if (c.opt.health_extra) j.update(c.opt.health_extra());
            send_json(c.res, 200, j);
-         }});
-  t.add({"GET", "/api/v1/pumps", Role::viewer, "every pump the historian knows", [](RouteContext& c, const PathParams&) { pumps(c); }});
+         }})
+      .response_schema = ref("Health");
+  t.add({"GET", "/api/v1/pumps", Role::viewer, "every pump the historian knows", [](RouteContext& c, const PathParams&) { pumps(c); }})
+      .response_schema = object({{"pumps", array(ref("PumpSummary"))}});
   t.add({"GET", "/api/v1/pumps/{pump_id}/runs", Role::viewer, "a pump's runs, oldest first",
-         [](RouteContext& c, const PathParams& p) { pump_runs(c, p.at("pump_id")); }});
+         [](RouteContext& c, const PathParams& p) { pump_runs(c, p.at("pump_id")); }})
+      .response_schema = object({{"pump_id", string()}, {"runs", array(ref("Run"))}});
   t.add({"GET", "/api/v1/pumps/{pump_id}/monitoring", Role::viewer, "a pump's monitoring snapshots, oldest first",
          [](RouteContext& c, const PathParams& p) { pump_monitoring(c, p.at("pump_id")); },
-         {{"since", "from this time on (ISO 8601 UTC or ns since the epoch, inclusive)"}, {"limit", "at most this many (1..10000, default 1000)"}}});
+         {{"since", "from this time on (ISO 8601 UTC or ns since the epoch, inclusive)"}, {"limit", "at most this many (1..10000, default 1000)"}}})
+      .response_schema = object({{"pump_id", string()}, {"limit", integer()}, {"snapshots", array(ref("MonitoringSnapshot"))}},
+                                {{"next_since", time()}});
   t.add({"GET", "/api/v1/runs/{run_id*}", Role::viewer, "a run: status, header, counts",
-         [](RouteContext& c, const PathParams& p) { run(c, p.at("run_id")); }});
+         [](RouteContext& c, const PathParams& p) { run(c, p.at("run_id")); }})
+      .response_schema = ref("Run");
   t.add({"GET", "/api/v1/runs/{run_id*}/samples.f32", Role::viewer, "the run's samples exactly as a recording's samples.f32",
          [](RouteContext& c, const PathParams& p) { samples(c, p.at("run_id")); }, {}, "application/octet-stream"})
       .errors = {410};

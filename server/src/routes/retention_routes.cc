@@ -2,6 +2,7 @@
 // policy with where each value comes from, a new version by an engineer,
 // and the versions with who made them.
 #include "ambdiag/server/retention_service.h"
+#include "routes/json_schema.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -46,16 +47,41 @@ void get_history(RouteContext& c, const PathParams& p) {
 
 void add_retention_routes(RouteTable& t) {
   using storage::Role;
+  using namespace schema;
+  // Each value a number, null: kept for ever (storage/retention_policy.h).
+  const json days = nullable(number());
+  const json values = object({}, {{"samples_days", days}, {"samples_bytes", nullable(integer())}, {"frf_days", days}, {"monitoring_days", days}});
+  t.add_schema("RetentionPolicy", values);
+  const json policy = object({{"pump_id", string()},
+                              {"policy", ref("RetentionPolicy")},
+                              {"source", one_of({"pump", "defaults"})},
+                              {"override", ref("RetentionPolicy")},
+                              {"defaults", ref("RetentionPolicy")},
+                              {"usage", object({{"runs_with_samples", integer()},
+                                                {"samples_bytes_held", integer()},
+                                                {"runs_samples_dropped", integer()},
+                                                {"samples_bytes_dropped", integer()},
+                                                {"runs_frf_dropped", integer()},
+                                                {"frf_bytes_dropped", integer()}})}},
+                             {{"version", integer()}, {"created_at", time()}, {"created_by", string()}});
   t.add({"GET", "/api/v1/pumps/{pump_id}/retention", Role::viewer,
-         "the pump's retention policy: effective values, its own keys over the server's defaults, what it holds", get_policy});
+         "the pump's retention policy: effective values, its own keys over the server's defaults, what it holds", get_policy})
+      .response_schema = policy;
   auto& put = t.add({"PUT", "/api/v1/pumps/{pump_id}/retention", Role::engineer,
                      "a new version of the pump's retention policy (its keys over the server's defaults)", put_policy});
   put.body =
       "{\"samples_days\"?, \"samples_bytes\"?, \"frf_days\"?, \"monitoring_days\"?}: each a number (null: kept for ever); "
       "keys left out take the server's defaults; {} goes back to them";
   put.writes_elsewhere = true;
+  put.body_schema = ref("RetentionPolicy");
+  put.response_schema = policy;
   t.add({"GET", "/api/v1/pumps/{pump_id}/retention/history", Role::viewer,
-         "every version of the pump's retention policy, oldest first, with who made it", get_history});
+         "every version of the pump's retention policy, oldest first, with who made it", get_history})
+      .response_schema = object({{"pump_id", string()},
+                                 {"versions", array(object({{"version", integer()},
+                                                            {"created_at", time()},
+                                                            {"created_by", string()},
+                                                            {"override", ref("RetentionPolicy")}}))}});
 }
 
 }  // namespace ambdiag::server::detail

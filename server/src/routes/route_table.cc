@@ -84,6 +84,10 @@ Route& RouteTable::add(Route r) {
   return routes_.back();
 }
 
+void RouteTable::add_schema(const std::string& name, nlohmann::json schema) {
+  if (!schemas_.emplace(name, std::move(schema)).second) throw std::logic_error("schema added twice: " + name);
+}
+
 RouteTable::Found RouteTable::find(const std::string& method, const std::vector<std::string>& segments) const {
   const std::string m = method == "HEAD" ? "GET" : method;
   Found best;

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "ambdiag/storage/service.h"
 
 namespace ambdiag::server::detail {
@@ -41,6 +43,10 @@ struct Route {
   // so that the positional initializers above keep compiling.
   std::string body = {};    // what a PUT/POST body holds ("": no body expected)
   std::string body_type = "application/json";
+  // JSON Schemas (2020-12, routes/json_schema.h) of the success answer and
+  // of the body, for the OpenAPI document; null: only "an object".
+  nlohmann::json response_schema = nullptr;
+  nlohmann::json body_schema = nullptr;
   int status = 200;         // the status of success (202: a job was queued)
   std::string description = {};  // more than the summary: behaviour, limits
   // The token may also come as ?access_token= (EventSource cannot set
@@ -86,6 +92,12 @@ class RouteTable {
   // segment) matches a route with trailing_slash without it.
   Found find(const std::string& method, const std::vector<std::string>& segments) const;
 
+  // A named schema (an OpenAPI component) that routes reference as
+  // schema::ref(name): a Pump, a Run, an Alarm shared by several routes.
+  // Throws std::logic_error on a duplicate name.
+  void add_schema(const std::string& name, nlohmann::json schema);
+  const std::map<std::string, nlohmann::json>& schemas() const { return schemas_; }
+
   const std::vector<Route>& routes() const { return routes_; }
   // The parsed pattern of routes()[i].
   const std::vector<PatternSegment>& pattern(size_t i) const { return patterns_[i]; }
@@ -93,6 +105,7 @@ class RouteTable {
  private:
   std::vector<Route> routes_;
   std::vector<std::vector<PatternSegment>> patterns_;  // parsed once, by index
+  std::map<std::string, nlohmann::json> schemas_;
 };
 
 }  // namespace ambdiag::server::detail

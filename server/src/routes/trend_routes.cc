@@ -8,6 +8,7 @@
 #include "ambdiag/core/error.h"
 #include "ambdiag/server/analysis_service.h"
 #include "ambdiag/storage/historian.h"
+#include "routes/api_schemas.h"
 #include "routes/route_context.h"
 #include "trends/prognosis.h"
 #include "trends/trend_json.h"
@@ -156,8 +157,11 @@ void prognosis(RouteContext& c, const std::string& pump_id) {
 
 void add_trend_routes(RouteTable& t) {
   using storage::Role;
+  using namespace schema;
+  add_trend_schemas(t);
   t.add({"GET", "/api/v1/pumps/{pump_id}/series", Role::viewer, "the pump's trend series: name and unit",
-         [](RouteContext& c, const PathParams& p) { series_list(c, p.at("pump_id")); }});
+         [](RouteContext& c, const PathParams& p) { series_list(c, p.at("pump_id")); }})
+      .response_schema = object({{"series", array(object({{"name", string()}, {"unit", string()}}))}}, {{"pump_id", string()}});
   t.add({"GET", "/api/v1/pumps/{pump_id}/trends", Role::viewer,
          "points of the pump's series over a range, or min/max buckets past max_points, with the reference band",
          [](RouteContext& c, const PathParams& p) { trends(c, p.at("pump_id")); },
@@ -165,14 +169,17 @@ void add_trend_routes(RouteTable& t) {
           {"from", "from this time on (ISO 8601 UTC or ns since the epoch, inclusive; default: the first point)"},
           {"to", "up to this time (inclusive; default: the last point)"},
           {"max_points", "at most this many points; more become as many min/max buckets (1..100000, default 1000)"},
-          {"raw", "true: the first max_points points and where to go on, instead of buckets"}}});
+          {"raw", "true: the first max_points points and where to go on, instead of buckets"}}})
+      .response_schema = object({{"series", array(ref("Trend"))}},
+                                {{"pump_id", string()}, {"max_points", integer()}, {"truncated", boolean()}, {"continue", string()}});
   t.add({"GET", "/api/v1/pumps/{pump_id}/prognosis", Role::viewer,
          "when the series' linear trend reaches a limit, with a 90 % interval, or why not",
          [](RouteContext& c, const PathParams& p) { prognosis(c, p.at("pump_id")); },
          {{"series", "the series name (URL-encoded)", true},
           {"limit", "the limit (default for the wear clearance factors: 2)"},
           {"from", "points from this time on (default: all)"},
-          {"to", "points up to this time"}}});
+          {"to", "points up to this time"}}})
+      .response_schema = ref("Prognosis");
 }
 
 }  // namespace ambdiag::server::detail

@@ -19,6 +19,7 @@
 #include "analysis/model_frf.h"
 #include "analysis/views.h"
 #include "rest_json.h"
+#include "routes/json_schema.h"
 #include "routes/route_context.h"
 
 namespace ambdiag::server::detail {
@@ -154,10 +155,12 @@ void add_web_routes(RouteTable& t) {
       "only (400 otherwise, so no '..'), nothing outside the folder.";
   t.add({"GET", "/api/v1/fleet", Role::viewer,
          "every pump's view (as GET /api/v1/pumps/{pump_id}) with its run count, in one reply",
-         [](RouteContext& c, const PathParams&) { get_fleet(c); }});
-  t.add({"GET", "/api/v1/me", Role::viewer, "who the request's token (or --anonymous-read) makes the caller",
-         [](RouteContext& c, const PathParams&) { get_me(c); }})
-      .description =
+         [](RouteContext& c, const PathParams&) { get_fleet(c); }})
+      .response_schema = schema::object({{"pumps", schema::array(schema::ref("Pump"))}});
+  auto& me = t.add({"GET", "/api/v1/me", Role::viewer, "who the request's token (or --anonymous-read) makes the caller",
+         [](RouteContext& c, const PathParams&) { get_me(c); }});
+  me.response_schema = schema::object({{"name", schema::string()}, {"role", schema::role()}, {"anonymous", schema::boolean()}});
+  me.description =
       "{\"name\", \"role\": \"viewer|operator|engineer|admin\", \"anonymous\": bool}: the token's name and role, "
       "or name \"anonymous\" with role viewer for a request without a token on a server with --anonymous-read. "
       "The web UI offers only the actions of this role.";
