@@ -19,10 +19,18 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "ambdiag/storage/alarms.h"
 
 namespace ambdiag::server::detail {
+
+// Every state above, for the REST filter's check and the OpenAPI enum.
+inline const std::vector<std::string>& alarm_states() {
+  static const std::vector<std::string> states = {"normal",   "unack_active", "ack_active",    "unack_rtn",
+                                                  "shelved",  "suppressed",   "out_of_service"};
+  return states;
+}
 
 // Who changes an alarm, when (server clock, ISO 8601 UTC with ms) and why.
 struct AlarmActor {

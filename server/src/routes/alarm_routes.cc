@@ -20,8 +20,6 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kStates[] = {"normal", "unack_active", "ack_active", "unack_rtn", "shelved", "suppressed", "out_of_service"};
-
 std::int64_t alarm_id_of(const PathParams& p) { return positive_integer(p.at("alarm_id"), "alarm_id"); }
 
 int limit_param(const RouteContext& c, int def, int max) {
@@ -51,7 +49,7 @@ void get_alarms(RouteContext& c) {
   if (c.req.has_param("pump_id")) f.pump_id = c.req.get_param_value("pump_id");
   if (c.req.has_param("state")) {
     const std::string s = c.req.get_param_value("state");
-    if (std::find(std::begin(kStates), std::end(kStates), s) == std::end(kStates))
+    if (std::find(alarm_states().begin(), alarm_states().end(), s) == alarm_states().end())
       throw InputError("state: '" + s + "' is not normal, unack_active, ack_active, unack_rtn, shelved, suppressed or out_of_service");
     f.state = s;
   }

@@ -1,5 +1,7 @@
 #include "routes/json_schema.h"
 
+#include "alarms/alarm_state.h"
+
 namespace ambdiag::server::detail::schema {
 
 json string() { return {{"type", "string"}}; }
@@ -42,7 +44,7 @@ json object(const Props& required, const Props& optional) {
 json health() { return one_of({"ok", "warning", "alarm", "unknown"}); }
 json job_status() { return one_of({"queued", "running", "done", "failed", "cancelled"}); }
 json alarm_state() {
-  return one_of({"normal", "unack_active", "ack_active", "unack_rtn", "shelved", "suppressed", "out_of_service"});
+  return one_of(alarm_states());
 }
 json role() { return one_of({"viewer", "operator", "engineer", "admin"}); }
 
