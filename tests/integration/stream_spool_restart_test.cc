@@ -1,6 +1,8 @@
 // The agent's spool survives the agent: real processes on loopback.
 #include <signal.h>
 
+#include <fstream>
+
 #include "stream_fixture.h"
 
 namespace ambdiag::testing {
@@ -42,7 +44,15 @@ TEST_F(SpoolRestartTest, ASecondAgentOnTheSameSpoolFolderIsRefusedAndTheFirstCom
   const fs::path first_run = short_run(3.0, "LOCK/1"), second_run = short_run(0.5, "LOCK/2");
   auto first = start_agent(first_run);  // paced: 3 s of streaming
   const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (!fs::exists(spool / "agent.lock") && std::chrono::steady_clock::now() < deadline)
+  // The lock is held once the file holds the first agent's pid (written
+  // after the flock; the file itself exists a moment before it).
+  const auto lock_holder = [&] {
+    std::ifstream in(spool / "agent.lock");
+    std::string pid;
+    in >> pid;
+    return pid;
+  };
+  while (lock_holder() != std::to_string(first->pid()) && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(20ms);
   auto second = start_agent(second_run, {"--fast"});
   ASSERT_EQ(second->wait(20s), 3) << second->log();
