@@ -15,8 +15,6 @@ pg="$dir/pg"
 trap '"$build/tests/ambdiag-test-pg" stop "$pg" >/dev/null 2>&1 || true; rm -rf "$dir"' EXIT
 "$build/tests/ambdiag-test-pg" start "$pg" >/dev/null
 uri="postgresql:///postgres?host=$pg&port=5432&user=postgres"
-pg_ctl=$(ls /usr/lib/postgresql/*/bin/pg_ctl | sort -V | tail -1)
-as_pg() { if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi; }
 "$build/cli/ambdiag" token list --db "$uri" >/dev/null  # the schema, once
 died=0 no_socket=0
 for i in $(seq 1 "$n"); do
@@ -24,7 +22,7 @@ for i in $(seq 1 "$n"); do
     --instance "R$i" >"$dir/serve_$i.log" 2>&1 &
   pid=$!
   sleep "0.$((RANDOM % 6))"
-  as_pg "$pg_ctl" -D "$pg/data" -m immediate -w -t 60 restart -l "$pg/log" >/dev/null
+  "$build/tests/ambdiag-test-pg" restart "$pg" immediate
   sleep 3
   if kill -0 "$pid" 2>/dev/null; then
     kill "$pid"; wait "$pid" 2>/dev/null || true
